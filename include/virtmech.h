@@ -1,0 +1,166 @@
+/* virtmech C API: a virtual-mechanism controller for a vendor servo callback
+ * (OpenHaptics HD scheduler, CHAI3D, or any 1 kHz+ loop).
+ *
+ * Allocation: only vm_controller_create allocates (the controller and every buffer
+ * it will use); vm_controller_destroy frees. vm_controller_step, vm_controller_reset and
+ * vm_controller_diagnostics never allocate and never block. All units SI
+ * (m, rad, N, N·m, s); convert from device-native units (mm, mN·m) at the boundary.
+ */
+#ifndef VIRTMECH_H_
+#define VIRTMECH_H_
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Return codes of every vm_ call that can fail. */
+#define VM_OK 0                 /* success */
+#define VM_ERROR_ARGUMENT -1    /* a description or argument was invalid (see message) */
+#define VM_ERROR_INTERNAL -2    /* unexpected failure (out of memory) */
+
+/* Status bits returned by vm_controller_step (same as virtmech::status). */
+#define VM_STATUS_OK 0u
+#define VM_STATUS_RAMPING (1u << 0)
+#define VM_STATUS_FORCE_CLAMPED (1u << 1)
+#define VM_STATUS_TORQUE_CLAMPED (1u << 2)
+#define VM_STATUS_NOT_CONVERGED (1u << 3)
+#define VM_STATUS_WATCHDOG (1u << 4)
+#define VM_STATUS_FAULT_NONFINITE_INPUT (1u << 8)
+#define VM_STATUS_FAULT_NONFINITE_OUTPUT (1u << 9)
+#define VM_STATUS_FAULT_BAD_SIZE (1u << 10)
+#define VM_STATUS_FAULT_MASK 0xFF00u
+
+/* Largest number of joints of a device or mechanism. */
+#define VM_MAX_DOF 8
+
+/* Device models. */
+typedef enum vm_device_type {
+  VM_DEVICE_PHANTOM_OMNI = 0, /* PHANTOM Omni / Geomagic Touch, default parameters */
+  VM_DEVICE_PLANAR3R = 1,     /* the paper's Fig. 8 planar robot, distal joint passive */
+  VM_DEVICE_SERIAL = 2        /* a serial chain with any actuation mask */
+} vm_device_type;
+
+/* Virtual mechanisms. */
+typedef enum vm_mechanism_type {
+  VM_MECHANISM_PLANAR_ARM = 0,  /* point = pivot, normal, length, direction = zero_direction */
+  VM_MECHANISM_PROBE = 1,       /* point = plane point, normal = plane normal, length */
+  VM_MECHANISM_POINT_PIVOT = 2, /* point, normal, length */
+  VM_MECHANISM_LINE_GUIDE = 3,  /* point, direction, length, normal */
+  VM_MECHANISM_SERIAL = 4       /* a serial chain */
+} vm_mechanism_type;
+
+/* One joint of a serial chain: type 0 revolute, 1 prismatic; axis in the joint frame;
+ * origin = pose of the joint frame in the previous frame at zero, as a row-major 4x4. */
+typedef struct vm_joint {
+  int type;
+  double axis[3];
+  double origin[16];
+  double lower; /* [rad or m]; use -HUGE_VAL for none */
+  double upper; /* [rad or m]; use HUGE_VAL for none */
+} vm_joint;
+
+/* A serial chain: base and handle poses as row-major 4x4 transforms. */
+typedef struct vm_chain {
+  int dof;
+  vm_joint joints[VM_MAX_DOF];
+  double base[16];
+  double handle[16];
+} vm_chain;
+
+/* Device description. For VM_DEVICE_PLANAR3R: link1, link2, torque_limit[0], max_force;
+ * for VM_DEVICE_SERIAL: chain, actuated, torque_limit, max_force, max_torque, stiffness,
+ * damping. Fill with vm_device_desc_init first: zero fields mean "default". */
+typedef struct vm_device_desc {
+  vm_device_type type;
+  double link1, link2;               /* [m] (Planar3R) */
+  vm_chain chain;                    /* (serial) */
+  int actuated[VM_MAX_DOF];          /* 1 = motor-driven (serial) */
+  double torque_limit[VM_MAX_DOF];   /* [N·m or N] */
+  double max_force;                  /* [N] */
+  double max_torque;                 /* [N·m] */
+  double stiffness;                  /* default translational Kp [N/m] */
+  double damping;                    /* default translational Kv [N·s/m] */
+} vm_device_desc;
+
+/* Mechanism description (see vm_mechanism_type for which fields each uses). */
+typedef struct vm_mechanism_desc {
+  vm_mechanism_type type;
+  double point[3];
+  double normal[3];
+  double direction[3]; /* zero direction (PlanarArm), line direction (LineGuide),
+                          tangent (Probe, PointPivot; zero = automatic) */
+  double length;       /* [m] */
+  vm_chain chain;      /* (serial) */
+  double length_scale; /* [m] (serial) */
+} vm_mechanism_desc;
+
+/* Controller settings; vm_settings_init fills the defaults. has_* = 0 keeps a default. */
+typedef struct vm_settings {
+  int has_kp, has_kv, has_w_a, has_w_e, has_w_e_star;
+  double kp[6], kv[6], w_a[6], w_e[6], w_e_star[6];
+  double length_scale;   /* [m]; 0 = the mechanism's */
+  int law;               /* 0 auto, 1 null space (eq. 11), 2 under-actuated (eq. 26) */
+  int error_velocity;    /* 0 relative (default), 1 handle (paper eq. 10) */
+  double period_s;       /* [s] */
+  double ramp_time_s;    /* [s] */
+  double watchdog_s;     /* [s]; 0 = off */
+  double max_force;      /* [N]; 0 = device's */
+  double max_torque;     /* [N·m]; 0 = device's */
+  int max_iterations;
+  int max_iterations_initial;
+} vm_settings;
+
+/* Diagnostics of the last cycle. */
+typedef struct vm_diagnostics {
+  int device_dof, mechanism_dof;
+  double torque[VM_MAX_DOF];
+  double wrench[6], wrench_null[6], wrench_range[6], wrench_unrendered[6];
+  double theta[VM_MAX_DOF], theta_star[VM_MAX_DOF];
+  double error[6], error_dot[6], error_star[6], error_star_dot[6];
+  double handle_pose[16];    /* row-major 4x4 */
+  double mechanism_pose[16]; /* row-major 4x4 */
+  int iterations, iterations_star;
+  double ramp, limit_scale;
+  uint32_t status;
+  double computation_time_us;
+} vm_diagnostics;
+
+typedef struct vm_controller vm_controller;
+
+/* Fills a device description with defaults for the given type. Does not allocate. */
+void vm_device_desc_init(vm_device_desc* desc, vm_device_type type);
+/* Fills a mechanism description with defaults for the given type. Does not allocate. */
+void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type);
+/* Fills settings with the defaults. Does not allocate. */
+void vm_settings_init(vm_settings* settings);
+
+/* Creates a controller (the only call that allocates). settings may be NULL. On failure
+ * returns VM_ERROR_ARGUMENT and writes a message naming the bad field into error
+ * (NUL-terminated, truncated to error_size; error may be NULL). */
+int vm_controller_create(const vm_device_desc* device, const vm_mechanism_desc* mechanism,
+                         const vm_settings* settings, vm_controller** out, char* error,
+                         size_t error_size);
+/* Frees a controller (NULL is allowed). */
+void vm_controller_destroy(vm_controller* controller);
+/* Number of device joints: the length of q, dq and tau. Does not allocate. */
+int vm_controller_dof(const vm_controller* controller);
+/* One servo cycle: q, dq in (device joints), tau out; returns status bits. t_s is the
+ * cycle's time stamp [s] for the watchdog, or NAN. Never allocates, never fails: a fault
+ * status comes with tau = 0. */
+uint32_t vm_controller_step(vm_controller* controller, const double* q, const double* dq,
+                            double t_s, double* tau);
+/* Restarts placements and the ramp-in. Does not allocate. */
+void vm_controller_reset(vm_controller* controller);
+/* Copies the diagnostics of the last cycle. Does not allocate. */
+void vm_controller_diagnostics(const vm_controller* controller, vm_diagnostics* out);
+/* The library's version, e.g. "0.1.0". */
+const char* vm_version(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* VIRTMECH_H_ */

@@ -1,0 +1,157 @@
+// The virtual-mechanism controller: one servo cycle turns device joint state into joint
+// torques (paper eqs. 11 and 26 in their six-degree-of-freedom form, plus safety).
+//
+// Model / workspace split: ControllerModel is the immutable, validated configuration
+// (every default resolved); the Controller holds it with the state the cycle updates
+// (warm starts, ramp counter) and every buffer, allocated once at construction.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+
+#include "virtmech/device.hpp"
+#include "virtmech/mechanism.hpp"
+#include "virtmech/track.hpp"
+
+namespace virtmech {
+
+/// Which control law the cycle evaluates.
+enum class ControlLaw : int {
+  kAuto = 0,           //!< eq. 26 when the device has un-powered joints, else eq. 11
+  kNullSpace = 1,      //!< eq. 11 (eq. 9 filter only): f = N(W_A)(Kp e + Kv e_dot)
+  kUnderActuated = 2,  //!< eq. 26: adds P(W_A)(Kp e* + Kv e*_dot)
+};
+
+/// How the error velocity is formed from the joint velocities.
+enum class ErrorVelocity : int {
+  /// e_dot = J_V theta_dot - J_R dq, with theta_dot the placement's first-order rate
+  /// (J_V^T W J_V)^+ J_V^T W J_R dq: the part of the handle's velocity the mechanism does
+  /// not follow. Default.
+  kRelative = 0,
+  /// e_dot = -J_R dq: the paper's eq. 10 (desired velocity zero).
+  kHandle = 1,
+};
+
+/// Status bits of a cycle. Bits below kFaultMask inform; a fault bit means zero torque.
+namespace status {
+constexpr std::uint32_t kOk = 0;
+constexpr std::uint32_t kRamping = 1u << 0;         //!< force ramp-in in progress
+constexpr std::uint32_t kForceClamped = 1u << 1;    //!< wrench scaled to the force limit
+constexpr std::uint32_t kTorqueClamped = 1u << 2;   //!< torques scaled to the joint limits
+constexpr std::uint32_t kNotConverged = 1u << 3;    //!< a placement hit its iteration cap
+constexpr std::uint32_t kWatchdog = 1u << 4;        //!< cycle gap exceeded the watchdog
+constexpr std::uint32_t kFaultNonFiniteInput = 1u << 8;   //!< q or dq not finite
+constexpr std::uint32_t kFaultNonFiniteOutput = 1u << 9;  //!< computation produced NaN/inf
+constexpr std::uint32_t kFaultBadSize = 1u << 10;         //!< q or dq of the wrong length
+constexpr std::uint32_t kFaultMask = 0xFF00u;
+}  // namespace status
+
+/// User settings; unset optionals take the documented defaults (docs/theory.md).
+struct ControllerSettings {
+  // U = [1 1 1 L^2 L^2 L^2]; "powered" = U on the task axes the device renders, 0 elsewhere
+  std::optional<Vector6> kp;        //!< stiffness [N/m x3; N·m/rad x3]; default k * powered
+  std::optional<Vector6> kv;        //!< damping [N·s/m x3; N·m·s/rad x3]; default b * powered
+  std::optional<Vector6> w_a;       //!< filter weights W_A; default powered
+  std::optional<Vector6> w_e;       //!< nearest-placement weights W_e; default powered
+  std::optional<Vector6> w_e_star;  //!< un-powered placement weights W_e*; default U - powered
+  double length_scale = 0.0;        //!< L [m]; 0 takes the mechanism's
+  ControlLaw law = ControlLaw::kAuto;
+  ErrorVelocity error_velocity = ErrorVelocity::kRelative;
+  double period_s = 1e-3;           //!< servo period [s]
+  double ramp_time_s = 0.25;        //!< force ramp-in after start and after a fault [s]
+  double watchdog_s = 0.0;          //!< largest gap between timed cycles [s]; 0: off
+  double max_force = 0.0;           //!< force limit [N]; 0 takes the device's
+  double max_torque = 0.0;          //!< moment limit [N·m]; 0 takes the device's
+  int max_iterations = 10;          //!< placement iterations per cycle
+  int max_iterations_initial = 100; //!< placement iterations on the first cycle
+  /// Weight of U added to W_e and to W_e* so that directions a placement's weights leave
+  /// undetermined are settled by the full pose error instead of drifting.
+  double secondary_weight = 1e-6;
+};
+
+/// The validated configuration with every default resolved.
+struct ControllerModel {
+  Vector6 kp, kv, w_a, w_e, w_e_star;
+  Vector6 w_e_effective;       //!< W_e + secondary_weight * U, as the solver uses it
+  Vector6 w_e_star_effective;  //!< W_e* + secondary_weight * U
+  double length_scale = 0.1;
+  ControlLaw law = ControlLaw::kAuto;
+  bool under_actuated_term = false;  //!< eq. 26's range-space term is evaluated
+  ErrorVelocity error_velocity = ErrorVelocity::kRelative;
+  double period_s = 1e-3;
+  long ramp_cycles = 1;
+  double watchdog_s = 0.0;
+  double max_force = kInf, max_torque = kInf;
+  TrackOptions track, track_initial;
+  std::array<bool, 6> renderable{};  //!< task axes the passive joints never move
+};
+
+/// Everything one cycle reports. Fixed-capacity members: copying never allocates.
+struct CycleOutput {
+  JointVector torque;             //!< joint torques commanded [N·m or N]; passive = 0
+  Vector6 wrench;                 //!< wrench applied at the handle [N; N·m]
+  Vector6 wrench_null;            //!< N(W_A)(Kp e + Kv e_dot), before safety
+  Vector6 wrench_range;           //!< P(W_A)(Kp e* + Kv e*_dot), before safety
+  Vector6 wrench_unrendered;      //!< part of the commanded wrench the device cannot apply
+  JointVector theta;              //!< nearest placement (W_e)
+  JointVector theta_star;         //!< un-powered placement (W_e*)
+  Vector6 error, error_dot;       //!< e = X_V - X_R and its rate
+  Vector6 error_star, error_star_dot;
+  Pose handle_pose = Pose::Identity();
+  Pose mechanism_pose = Pose::Identity();
+  Pose mechanism_pose_star = Pose::Identity();
+  int iterations = 0, iterations_star = 0;
+  double residual = 0.0, residual_star = 0.0;
+  double ramp = 0.0;              //!< ramp-in factor applied [0, 1]
+  double limit_scale = 1.0;       //!< factor applied by force and torque limits (0, 1]
+  std::uint32_t status = status::kOk;
+  double computation_time_us = 0.0;  //!< this cycle's own computation time [µs]
+};
+
+class Controller {
+ public:
+  /// Validates settings and allocates every buffer; throws std::invalid_argument.
+  Controller(std::shared_ptr<const Device> device, std::shared_ptr<const Mechanism> mechanism,
+             const ControllerSettings& settings = ControllerSettings());
+
+  /// One servo cycle: q, dq (device joints, dof() each) in, out filled. t_s is the cycle's
+  /// time stamp [s] for the watchdog (NaN: untimed). noexcept, allocation-free.
+  std::uint32_t step(const double* q, const double* dq, CycleOutput& out,
+                     double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
+  /// As above, with sizes checked (a wrong size is the fault kFaultBadSize).
+  std::uint32_t step(const Eigen::Ref<const Eigen::VectorXd>& q,
+                     const Eigen::Ref<const Eigen::VectorXd>& dq, CycleOutput& out,
+                     double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
+
+  /// Restarts: placements from the mechanism's home, ramp-in from zero.
+  void reset() noexcept;
+
+  const Device& device() const noexcept { return *device_; }
+  const Mechanism& mechanism() const noexcept { return *mechanism_; }
+  std::shared_ptr<const Device> device_ptr() const noexcept { return device_; }
+  std::shared_ptr<const Mechanism> mechanism_ptr() const noexcept { return mechanism_; }
+  const ControllerModel& model() const noexcept { return model_; }
+  const CycleOutput& last() const noexcept { return last_; }
+
+ private:
+  void fault(std::uint32_t bits, CycleOutput& out) noexcept;
+  void placement_rate(const Jacobian& J_V, const Vector6& W, const Vector6& v_R,
+                      Vector6& e_dot) const noexcept;
+
+  std::shared_ptr<const Device> device_;
+  std::shared_ptr<const Mechanism> mechanism_;
+  ControllerModel model_;
+  // state
+  JointVector theta_, theta_star_;
+  bool first_ = true;
+  long ramp_count_ = 0;
+  double last_t_ = std::numeric_limits<double>::quiet_NaN();
+  CycleOutput last_;
+};
+
+/// Resolves settings against a device and mechanism (what the Controller constructor does).
+ControllerModel make_controller_model(const Device& device, const Mechanism& mechanism,
+                                      const ControllerSettings& settings);
+
+}  // namespace virtmech

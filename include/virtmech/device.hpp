@@ -1,0 +1,117 @@
+// Haptic devices: joint-space kinematics of the real robot the user holds, which joints
+// have motors, and the limits the safety layer enforces.
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "virtmech/kinematic_chain.hpp"
+
+namespace virtmech {
+
+/// Everything a device model declares besides its kinematics.
+struct DeviceLimits {
+  std::vector<bool> actuated;        //!< one flag per joint: true if a motor drives it
+  std::vector<double> torque_limit;  //!< per joint [N·m or N]; passive joints: ignored
+  std::vector<double> lower;         //!< joint limits in device coordinates [rad or m]
+  std::vector<double> upper;
+  double max_force = kInf;           //!< largest force the handle may receive [N]
+  double max_torque = kInf;          //!< largest moment the handle may receive [N·m]
+  double stiffness = 500.0;          //!< default translational Kp [N/m]
+  double damping = 1.0;              //!< default translational Kv [N·s/m]
+};
+
+/// A haptic device: a kinematic chain in "serial" coordinates s = C q + c0 of the device's
+/// own joint coordinates q (C lets a parallelogram or a driver's sign / offset convention be
+/// expressed exactly), an actuation mask and limits.
+class Device {
+ public:
+  /// A device whose joint coordinates are the chain's own (C = I, c0 = 0).
+  Device(std::string name, const KinematicChain& chain, const DeviceLimits& limits);
+  /// A device with a linear joint map s = C q + c0 to the chain's coordinates.
+  Device(std::string name, const KinematicChain& chain, const DeviceLimits& limits,
+         const JointMatrix& coupling, const JointVector& coupling_offset);
+  virtual ~Device() = default;
+
+  const std::string& name() const noexcept { return name_; }
+  int dof() const noexcept { return chain_.dof(); }
+  const KinematicChain& chain() const noexcept { return chain_; }
+  bool actuated(int i) const noexcept { return actuated_[static_cast<size_t>(i)]; }
+  int num_actuated() const noexcept { return num_actuated_; }
+  bool fully_actuated() const noexcept { return num_actuated_ == dof(); }
+  const JointVector& torque_limit() const noexcept { return torque_limit_; }
+  const JointVector& lower() const noexcept { return lower_; }
+  const JointVector& upper() const noexcept { return upper_; }
+  const JointVector& home() const noexcept { return home_; }
+  double max_force() const noexcept { return max_force_; }
+  double max_torque() const noexcept { return max_torque_; }
+  double stiffness() const noexcept { return stiffness_; }
+  double damping() const noexcept { return damping_; }
+  const JointMatrix& coupling() const noexcept { return coupling_; }
+  const JointVector& coupling_offset() const noexcept { return coupling_offset_; }
+
+  /// Handle pose at device joint values q.
+  void forward(const double* q, Pose& T) const noexcept;
+  /// Handle pose and geometric Jacobian with respect to the device's joints q.
+  void forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept;
+
+ protected:
+  void set_home(const JointVector& home);
+
+ private:
+  std::string name_;
+  KinematicChain chain_;
+  JointMatrix coupling_;
+  JointVector coupling_offset_;
+  bool coupled_ = false;
+  std::array<bool, kMaxDof> actuated_{};
+  int num_actuated_ = 0;
+  JointVector torque_limit_, lower_, upper_, home_;
+  double max_force_ = kInf, max_torque_ = kInf, stiffness_ = 500.0, damping_ = 1.0;
+};
+
+/// Parameters of the PHANTOM Omni / Geomagic Touch model (defaults: ../shared/REFERENCE.md).
+struct PhantomOmniParams {
+  double l1 = 0.13335;  //!< upper arm [m] (commonly cited 133.35 mm; check)
+  double l2 = 0.13335;  //!< forearm [m]
+  double max_force = 3.3;  //!< peak force at the handle [N]
+  /// Motor torque limits [N·m]: peak force times link length (an estimate; check).
+  std::array<double, 3> motor_torque_limit{{0.44, 0.44, 0.44}};
+  /// Gimbal angles as the driver reports them map to virtmech's as
+  /// g_vm = sign * (g_driver - offset). Defaults: the driver already speaks virtmech's.
+  std::array<double, 3> gimbal_offset{{0.0, 0.0, 0.0}};
+  std::array<double, 3> gimbal_sign{{1.0, 1.0, 1.0}};
+  double stiffness = 500.0;  //!< default Kp [N/m] (HD_NOMINAL_MAX_STIFFNESS 0.5 N/mm)
+  double damping = 1.0;      //!< default Kv [N·s/m]
+};
+
+/// The PHANTOM Omni / Geomagic Touch: 6 joints in OpenHaptics order and conventions
+/// (waist t1, shoulder t2, absolute elbow t3 as HD_CURRENT_JOINT_ANGLES; gimbal yaw, pitch,
+/// roll). Waist, shoulder, elbow are actuated; the gimbal is passive and its three axes
+/// meet at the gimbal centre, the handle origin. World frame: OpenHaptics axes (+x right,
+/// +y up, +z toward the user), in metres, origin where the gimbal centre is at t = 0.
+/// Gimbal zero: stylus horizontal, pointing away from the user (-z). See docs/devices.md.
+class PhantomOmni final : public Device {
+ public:
+  explicit PhantomOmni(const PhantomOmniParams& params = PhantomOmniParams());
+  const PhantomOmniParams& params() const noexcept { return params_; }
+
+ private:
+  PhantomOmniParams params_;
+};
+
+/// The paper's Fig. 8 robot: three revolute joints about the base z axis, in the base's
+/// x-y plane; links `link1`, `link2`; the handle origin on the third (distal, un-powered)
+/// joint, the stylus in the plane at angle q0 + q1 + q2 from the base x axis.
+class Planar3R final : public Device {
+ public:
+  Planar3R(double link1, double link2, const Pose& base, double torque_limit, double max_force);
+  double link1() const noexcept { return link1_; }
+  double link2() const noexcept { return link2_; }
+
+ private:
+  double link1_, link2_;
+};
+
+}  // namespace virtmech

@@ -1,0 +1,12 @@
+// virtmech: haptic devices, fully or under-actuated, rendered as virtual mechanisms.
+#pragma once
+
+#include "virtmech/controller.hpp"
+#include "virtmech/device.hpp"
+#include "virtmech/filters.hpp"
+#include "virtmech/kinematic_chain.hpp"
+#include "virtmech/mechanism.hpp"
+#include "virtmech/se3.hpp"
+#include "virtmech/track.hpp"
+#include "virtmech/types.hpp"
+#include "virtmech/version.hpp"

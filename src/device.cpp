@@ -1,0 +1,259 @@
+#include "virtmech/device.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "virtmech/se3.hpp"
+#include "virtmech/validate.hpp"
+
+namespace virtmech {
+
+namespace {
+
+JointVector to_joint_vector(const std::string& name, const std::vector<double>& v, int n,
+                            double fill) {
+  if (v.empty()) return JointVector::Constant(n, fill);
+  if (static_cast<int>(v.size()) != n) {
+    std::ostringstream os;
+    os << name << ": expected " << n << " values (one per joint), got " << v.size();
+    throw std::invalid_argument(os.str());
+  }
+  JointVector out(n);
+  for (int i = 0; i < n; ++i) out[i] = v[static_cast<size_t>(i)];
+  return out;
+}
+
+Joint revolute(const Eigen::Vector3d& axis, const Eigen::Vector3d& at, double lower = -kInf,
+               double upper = kInf) {
+  Joint j;
+  j.type = JointType::kRevolute;
+  j.axis = axis;
+  j.origin = Pose::Identity();
+  j.origin.translation() = at;
+  j.lower = lower;
+  j.upper = upper;
+  return j;
+}
+
+}  // namespace
+
+Device::Device(std::string name, const KinematicChain& chain, const DeviceLimits& limits)
+    : Device(std::move(name), chain, limits, JointMatrix::Identity(chain.dof(), chain.dof()),
+             JointVector::Zero(chain.dof())) {
+  coupled_ = false;
+}
+
+Device::Device(std::string name, const KinematicChain& chain, const DeviceLimits& limits,
+               const JointMatrix& coupling, const JointVector& coupling_offset)
+    : name_(std::move(name)), chain_(chain), coupling_(coupling),
+      coupling_offset_(coupling_offset) {
+  const int n = chain_.dof();
+  if (n < 1) throw std::invalid_argument("chain: expected at least one joint");
+  if (coupling_.rows() != n || coupling_.cols() != n || coupling_offset_.size() != n) {
+    throw std::invalid_argument("coupling: expected a dof x dof matrix and a dof offset");
+  }
+  require_finite("coupling", Eigen::Map<const Eigen::VectorXd>(coupling_.data(), n * n));
+  require_finite("coupling_offset", coupling_offset_);
+  coupled_ = !(coupling_.isIdentity(0.0) && coupling_offset_.isZero(0.0));
+
+  if (static_cast<int>(limits.actuated.size()) != n) {
+    std::ostringstream os;
+    os << "actuated: expected " << n << " flags (one per joint), got " << limits.actuated.size();
+    throw std::invalid_argument(os.str());
+  }
+  for (int i = 0; i < n; ++i) {
+    actuated_[static_cast<size_t>(i)] = limits.actuated[static_cast<size_t>(i)];
+    num_actuated_ += actuated_[static_cast<size_t>(i)] ? 1 : 0;
+  }
+  if (num_actuated_ == 0) throw std::invalid_argument("actuated: expected at least one actuated joint, got none");
+
+  torque_limit_ = to_joint_vector("torque_limit", limits.torque_limit, n, kInf);
+  for (int i = 0; i < n; ++i) {
+    if (!(torque_limit_[i] > 0.0) && actuated_[static_cast<size_t>(i)]) {
+      std::ostringstream os;
+      os << "torque_limit[" << i << "]: expected > 0 for an actuated joint, got " << torque_limit_[i];
+      throw std::invalid_argument(os.str());
+    }
+    if (!actuated_[static_cast<size_t>(i)]) torque_limit_[i] = 0.0;
+  }
+  JointVector chain_lower(n), chain_upper(n);
+  for (int i = 0; i < n; ++i) {
+    chain_lower[i] = chain_.joint(i).lower;
+    chain_upper[i] = chain_.joint(i).upper;
+  }
+  lower_ = to_joint_vector("lower", limits.lower, n, -kInf);
+  upper_ = to_joint_vector("upper", limits.upper, n, kInf);
+  if (limits.lower.empty() && !coupled_) lower_ = chain_lower;
+  if (limits.upper.empty() && !coupled_) upper_ = chain_upper;
+  for (int i = 0; i < n; ++i) {
+    if (std::isnan(lower_[i]) || std::isnan(upper_[i]) || !(lower_[i] <= upper_[i])) {
+      std::ostringstream os;
+      os << "lower/upper[" << i << "]: expected lower <= upper, got " << lower_[i] << " and "
+         << upper_[i];
+      throw std::invalid_argument(os.str());
+    }
+  }
+  if (!(limits.max_force > 0.0)) {
+    std::ostringstream os;
+    os << "max_force: expected > 0 [N], got " << limits.max_force;
+    throw std::invalid_argument(os.str());
+  }
+  if (!(limits.max_torque > 0.0)) {
+    std::ostringstream os;
+    os << "max_torque: expected > 0 [N·m], got " << limits.max_torque;
+    throw std::invalid_argument(os.str());
+  }
+  require_non_negative("stiffness", limits.stiffness);
+  require_non_negative("damping", limits.damping);
+  max_force_ = limits.max_force;
+  max_torque_ = limits.max_torque;
+  stiffness_ = limits.stiffness;
+  damping_ = limits.damping;
+  home_ = JointVector::Zero(n);
+  for (int i = 0; i < n; ++i) home_[i] = std::min(std::max(0.0, lower_[i]), upper_[i]);
+}
+
+void Device::set_home(const JointVector& home) { home_ = home; }
+
+void Device::forward(const double* q, Pose& T) const noexcept {
+  if (!coupled_) {
+    chain_.forward(q, T);
+    return;
+  }
+  const Eigen::Map<const JointVector> qv(q, dof());
+  JointVector s = coupling_offset_;
+  s.noalias() += coupling_ * qv;
+  chain_.forward(s.data(), T);
+}
+
+void Device::forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept {
+  if (!coupled_) {
+    chain_.forward_jacobian(q, T, J);
+    return;
+  }
+  const Eigen::Map<const JointVector> qv(q, dof());
+  JointVector s = coupling_offset_;
+  s.noalias() += coupling_ * qv;
+  Jacobian Js;
+  chain_.forward_jacobian(s.data(), T, Js);
+  J.resize(6, dof());
+  J.noalias() = Js * coupling_;
+}
+
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+KinematicChain omni_chain(const PhantomOmniParams& p) {
+  require_positive("l1", p.l1);
+  require_positive("l2", p.l2);
+  const Eigen::Vector3d ux = Eigen::Vector3d::UnitX(), uy = Eigen::Vector3d::UnitY();
+  std::vector<Joint> j = {
+      revolute(-uy, Eigen::Vector3d(0.0, p.l2, -p.l1)),  // waist, about -y through the shoulder
+      revolute(-ux, Eigen::Vector3d::Zero()),           // shoulder, about -x
+      revolute(-ux, Eigen::Vector3d(0.0, 0.0, p.l1)),   // elbow (serial: t3 - t2), about -x
+      revolute(-uy, Eigen::Vector3d(0.0, -p.l2, 0.0)),  // gimbal yaw, at the gimbal centre
+      revolute(-ux, Eigen::Vector3d::Zero()),           // gimbal pitch
+      revolute(-Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero()),  // gimbal roll (stylus)
+  };
+  Pose handle = Pose::Identity();
+  handle.linear() = Eigen::AngleAxisd(M_PI, ux).toRotationMatrix();  // z_h = -z: stylus forward
+  return KinematicChain(Pose::Identity(), j, handle);
+}
+
+DeviceLimits omni_limits(const PhantomOmniParams& p) {
+  for (int i = 0; i < 3; ++i) {
+    require_positive("motor_torque_limit[" + std::to_string(i) + "]", p.motor_torque_limit[i]);
+    if (!(p.gimbal_sign[i] == 1.0 || p.gimbal_sign[i] == -1.0)) {
+      std::ostringstream os;
+      os << "gimbal_sign[" << i << "]: expected +1 or -1, got " << p.gimbal_sign[i];
+      throw std::invalid_argument(os.str());
+    }
+    require_finite("gimbal_offset[" + std::to_string(i) + "]", p.gimbal_offset[i]);
+  }
+  DeviceLimits L;
+  L.actuated = {true, true, true, false, false, false};
+  L.torque_limit = {p.motor_torque_limit[0], p.motor_torque_limit[1], p.motor_torque_limit[2],
+                    0.0, 0.0, 0.0};
+  // public URDF limits [rad]; gimbal yaw shifted by 2*pi to virtmech's zero
+  L.lower = {-0.98, 0.0, -0.81, 3.92 - 2.0 * M_PI, -0.5, -2.58};
+  L.upper = {0.98, 1.75, 1.25, 8.83 - 2.0 * M_PI, 1.75, 2.58};
+  for (int i = 0; i < 3; ++i) {
+    // limits are stated in virtmech's gimbal angles; express them in the driver's
+    const double a = p.gimbal_sign[i] * L.lower[3 + i] + p.gimbal_offset[i];
+    const double b = p.gimbal_sign[i] * L.upper[3 + i] + p.gimbal_offset[i];
+    L.lower[3 + i] = std::min(a, b);
+    L.upper[3 + i] = std::max(a, b);
+  }
+  L.max_force = p.max_force;
+  L.max_torque = kInf;  // the gimbal renders no moment; the wrench is projected instead
+  L.stiffness = p.stiffness;
+  L.damping = p.damping;
+  return L;
+}
+
+JointMatrix omni_coupling(const PhantomOmniParams& p) {
+  JointMatrix C = JointMatrix::Identity(6, 6);
+  C(2, 1) = -1.0;  // serial elbow = absolute elbow - shoulder (parallelogram)
+  for (int i = 0; i < 3; ++i) C(3 + i, 3 + i) = p.gimbal_sign[i];
+  return C;
+}
+
+JointVector omni_offset(const PhantomOmniParams& p) {
+  JointVector c = JointVector::Zero(6);
+  for (int i = 0; i < 3; ++i) c[3 + i] = -p.gimbal_sign[i] * p.gimbal_offset[i];
+  return c;
+}
+
+}  // namespace
+
+PhantomOmni::PhantomOmni(const PhantomOmniParams& params)
+    : Device("PhantomOmni", omni_chain(params), omni_limits(params), omni_coupling(params),
+             omni_offset(params)),
+      params_(params) {
+  // a pose in the middle of the workspace, stylus tilted down
+  JointVector home(6);
+  home << 0.0, 0.3, 0.0, params.gimbal_offset[0], 0.5 * params.gimbal_sign[1] + params.gimbal_offset[1],
+      params.gimbal_offset[2];
+  set_home(home);
+}
+
+namespace {
+
+KinematicChain planar3r_chain(double l1, double l2, const Pose& base) {
+  require_positive("link1", l1);
+  require_positive("link2", l2);
+  require_pose("base", base);
+  const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+  std::vector<Joint> j = {revolute(z, Eigen::Vector3d::Zero()),
+                          revolute(z, Eigen::Vector3d(l1, 0.0, 0.0)),
+                          revolute(z, Eigen::Vector3d(l2, 0.0, 0.0))};
+  Eigen::Matrix3d R;
+  R.col(0) = Eigen::Vector3d::UnitY();
+  R.col(1) = Eigen::Vector3d::UnitZ();
+  R.col(2) = Eigen::Vector3d::UnitX();  // stylus along the distal link direction
+  return KinematicChain(base, j, make_pose(R, Eigen::Vector3d::Zero()));
+}
+
+DeviceLimits planar3r_limits(double torque_limit, double max_force) {
+  require_positive("torque_limit", torque_limit);
+  require_positive("max_force", max_force);
+  DeviceLimits L;
+  L.actuated = {true, true, false};
+  L.torque_limit = {torque_limit, torque_limit, 0.0};
+  L.max_force = max_force;
+  L.stiffness = 500.0;
+  L.damping = 2.0;
+  return L;
+}
+
+}  // namespace
+
+Planar3R::Planar3R(double link1, double link2, const Pose& base, double torque_limit,
+                   double max_force)
+    : Device("Planar3R", planar3r_chain(link1, link2, base),
+             planar3r_limits(torque_limit, max_force)),
+      link1_(link1), link2_(link2) {}
+
+}  // namespace virtmech

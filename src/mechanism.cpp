@@ -1,0 +1,195 @@
+#include "virtmech/mechanism.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "virtmech/se3.hpp"
+#include "virtmech/validate.hpp"
+
+namespace virtmech {
+
+namespace {
+
+Joint make_joint(JointType type, const Eigen::Vector3d& axis,
+                 const Pose& origin = Pose::Identity()) {
+  Joint j;
+  j.type = type;
+  j.axis = axis;
+  j.origin = origin;
+  return j;
+}
+
+// the stylus rotated a half turn about local x: z_handle = -z_tip, handle `length` back
+Pose handle_behind_tip(double length) {
+  Pose H = Pose::Identity();
+  H.translation() = Eigen::Vector3d(0.0, 0.0, length);
+  H.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  return H;
+}
+
+// frame with columns [t1, n x t1, n] at p
+Pose tangent_frame(const Eigen::Vector3d& p, const Eigen::Vector3d& n,
+                   const Eigen::Vector3d& t1) {
+  Eigen::Matrix3d R;
+  R.col(0) = t1;
+  R.col(1) = n.cross(t1);
+  R.col(2) = n;
+  return make_pose(R, p);
+}
+
+Eigen::Vector3d tangent_or_default(const std::string& name, const Eigen::Vector3d& t,
+                                   const Eigen::Vector3d& n) {
+  if (t.isZero(0.0)) return any_orthogonal(n);
+  const Eigen::Vector3d u = require_unit(name, t);
+  if (std::abs(u.dot(n)) > 1e-6) {
+    throw std::invalid_argument(name + ": expected a unit vector orthogonal to " +
+                                format_vector(n) + ", got " + format_vector(t));
+  }
+  return (u - u.dot(n) * n).normalized();
+}
+
+std::vector<Joint> wrist_rrr() {
+  return {make_joint(JointType::kRevolute, Eigen::Vector3d::UnitX()),
+          make_joint(JointType::kRevolute, Eigen::Vector3d::UnitY()),
+          make_joint(JointType::kRevolute, Eigen::Vector3d::UnitZ())};
+}
+
+}  // namespace
+
+Mechanism::Mechanism(std::string type, KinematicChain chain, double length_scale,
+                     JointVector home)
+    : type_(std::move(type)), chain_(std::move(chain)), length_scale_(length_scale),
+      home_(std::move(home)) {
+  require_positive("length_scale", length_scale_);
+  if (home_.size() != chain_.dof()) throw std::invalid_argument("home: size mismatch");
+}
+
+JointVector Mechanism::lower() const {
+  JointVector v(dof());
+  for (int i = 0; i < dof(); ++i) v[i] = chain_.joint(i).lower;
+  return v;
+}
+
+JointVector Mechanism::upper() const {
+  JointVector v(dof());
+  for (int i = 0; i < dof(); ++i) v[i] = chain_.joint(i).upper;
+  return v;
+}
+
+// ---------------------------------------------------------------------------------------
+
+static KinematicChain planar_arm_chain(const Eigen::Vector3d& pivot, const Eigen::Vector3d& n,
+                                       double length, const Eigen::Vector3d& d) {
+  // base frame: x = d, y = n x d, z = n; the handle at length*d with z_h = -d, y_h = n
+  const Pose base = tangent_frame(pivot, n, d);
+  Eigen::Matrix3d Rh;
+  Rh.col(2) = -Eigen::Vector3d::UnitX();              // stylus toward the pivot
+  Rh.col(1) = Eigen::Vector3d::UnitZ();               // plane normal
+  Rh.col(0) = Rh.col(1).cross(Rh.col(2));             // x = y cross z
+  const Pose handle = make_pose(Rh, Eigen::Vector3d(length, 0.0, 0.0));
+  return KinematicChain(base, {make_joint(JointType::kRevolute, Eigen::Vector3d::UnitZ())},
+                        handle);
+}
+
+static Eigen::Vector3d checked_zero_direction(const Eigen::Vector3d& d, const Eigen::Vector3d& n) {
+  const Eigen::Vector3d u = require_unit("zero_direction", d);
+  if (std::abs(u.dot(n)) > 1e-6) {
+    throw std::invalid_argument("zero_direction: expected a unit vector in the plane (orthogonal "
+                                "to normal " + format_vector(n) + "), got " + format_vector(d));
+  }
+  return (u - u.dot(n) * n).normalized();
+}
+
+PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal, double length,
+                     const Eigen::Vector3d& zero_direction)
+    : Mechanism("PlanarArm",
+                planar_arm_chain(pivot, require_unit("normal", normal), length,
+                                 checked_zero_direction(zero_direction, normal.normalized())),
+                length, JointVector::Zero(1)),
+      pivot_(pivot), normal_(normal.normalized()),
+      zero_direction_(checked_zero_direction(zero_direction, normal.normalized())),
+      length_(length) {
+  require_finite("pivot", pivot);
+  require_positive("length", length);
+}
+
+// ---------------------------------------------------------------------------------------
+
+static KinematicChain probe_chain(const Eigen::Vector3d& p, const Eigen::Vector3d& n,
+                                  const Eigen::Vector3d& t1, double length) {
+  std::vector<Joint> joints = {make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitX()),
+                               make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitY())};
+  for (const Joint& j : wrist_rrr()) joints.push_back(j);
+  return KinematicChain(tangent_frame(p, n, t1), joints, handle_behind_tip(length));
+}
+
+static double checked_length(double length) {
+  require_positive("length", length);
+  return length;
+}
+
+Probe::Probe(const Eigen::Vector3d& plane_point, const Eigen::Vector3d& plane_normal,
+             double length, const Eigen::Vector3d& tangent)
+    : Mechanism("Probe",
+                probe_chain(plane_point, require_unit("plane_normal", plane_normal),
+                            tangent_or_default("tangent", tangent, plane_normal.normalized()),
+                            checked_length(length)),
+                length, JointVector::Zero(5)),
+      point_(plane_point), normal_(plane_normal.normalized()),
+      tangent_(tangent_or_default("tangent", tangent, plane_normal.normalized())),
+      length_(length) {
+  require_finite("plane_point", plane_point);
+}
+
+PointPivot::PointPivot(const Eigen::Vector3d& point, const Eigen::Vector3d& normal,
+                       double length, const Eigen::Vector3d& tangent)
+    : Mechanism("PointPivot",
+                KinematicChain(tangent_frame(point, require_unit("normal", normal),
+                                             tangent_or_default("tangent", tangent,
+                                                                normal.normalized())),
+                               wrist_rrr(), handle_behind_tip(checked_length(length))),
+                length, JointVector::Zero(3)),
+      point_(point), normal_(normal.normalized()),
+      tangent_(tangent_or_default("tangent", tangent, normal.normalized())), length_(length) {
+  require_finite("point", point);
+}
+
+static std::vector<Joint> line_joints() {
+  std::vector<Joint> joints = {make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitX())};
+  for (const Joint& j : wrist_rrr()) joints.push_back(j);
+  return joints;
+}
+
+LineGuide::LineGuide(const Eigen::Vector3d& point, const Eigen::Vector3d& direction,
+                     double length, const Eigen::Vector3d& normal)
+    : Mechanism("LineGuide",
+                KinematicChain(
+                    tangent_frame(point,
+                                  tangent_or_default("normal", normal,
+                                                     require_unit("direction", direction)),
+                                  direction.normalized()),
+                    line_joints(), handle_behind_tip(checked_length(length))),
+                length, JointVector::Zero(4)),
+      point_(point), direction_(direction.normalized()),
+      normal_(tangent_or_default("normal", normal, direction.normalized())), length_(length) {
+  require_finite("point", point);
+}
+
+static JointVector home_within_limits(const KinematicChain& chain) {
+  // zero, moved into the joint limits
+  JointVector home = JointVector::Zero(chain.dof());
+  for (int i = 0; i < chain.dof(); ++i) {
+    home[i] = std::min(std::max(0.0, chain.joint(i).lower), chain.joint(i).upper);
+  }
+  return home;
+}
+
+SerialChain::SerialChain(const std::vector<Joint>& joints, const Pose& handle, const Pose& base,
+                         double length_scale)
+    : SerialChain(KinematicChain(base, joints, handle), length_scale) {}
+
+SerialChain::SerialChain(const KinematicChain& chain, double length_scale)
+    : Mechanism("SerialChain", chain, length_scale, home_within_limits(chain)) {}
+
+}  // namespace virtmech

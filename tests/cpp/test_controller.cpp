@@ -1,0 +1,278 @@
+// The control laws (eqs. 11, 26) and the safety layer.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "test_support.hpp"
+
+using namespace virtmech;
+using namespace vmtest;
+
+namespace {
+
+ControllerSettings no_ramp() {
+  ControllerSettings s;
+  s.ramp_time_s = 0.0;
+  return s;
+}
+
+// Planar3R with a PlanarArm circle of radius 0.1 about (0.25, 0) in its plane
+struct PlanarScene {
+  double l1 = 0.2, l2 = 0.2, R = 0.1;
+  Eigen::Vector3d pivot{0.25, 0.0, 0.0};
+  std::shared_ptr<Planar3R> robot = std::make_shared<Planar3R>(0.2, 0.2, Pose::Identity(), 50.0, 100.0);
+  std::shared_ptr<PlanarArm> arm = std::make_shared<PlanarArm>(
+      Eigen::Vector3d(0.25, 0.0, 0.0), Eigen::Vector3d::UnitZ(), 0.1, Eigen::Vector3d::UnitX());
+  // handle at angle alpha on a circle of radius r about the pivot, stylus as the arm's at beta
+  JointVector q(double r, double alpha, double beta) const {
+    const Eigen::Vector3d p = pivot + r * Eigen::Vector3d(std::cos(alpha), std::sin(alpha), 0);
+    return planar3r_ik(l1, l2, p.x(), p.y(), beta + M_PI);
+  }
+};
+
+}  // namespace
+
+TEST(Controller, PassiveJointTorquesAreExactlyZero) {
+  auto omni = std::make_shared<PhantomOmni>();
+  std::vector<std::shared_ptr<const Mechanism>> mechs = {
+      std::make_shared<Probe>(Eigen::Vector3d(0, -0.05, 0), Eigen::Vector3d::UnitY(), 0.1,
+                              Eigen::Vector3d::Zero()),
+      std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0.0, -0.1), Eigen::Vector3d::UnitZ(), 0.05,
+                                  Eigen::Vector3d::UnitX())};
+  std::mt19937 rng(51);
+  std::normal_distribution<double> g(0.0, 0.5);
+  for (const auto& m : mechs) {
+    Controller c(omni, m, no_ramp());
+    CycleOutput out;
+    for (int trial = 0; trial < 500; ++trial) {
+      const JointVector q = random_within(rng, omni->lower(), omni->upper());
+      JointVector dq(6);
+      for (int i = 0; i < 6; ++i) dq[i] = g(rng);
+      c.step(q.data(), dq.data(), out);
+      EXPECT_EQ(out.status & status::kFaultMask, 0u);
+      EXPECT_EQ(out.torque[3], 0.0);
+      EXPECT_EQ(out.torque[4], 0.0);
+      EXPECT_EQ(out.torque[5], 0.0);
+      EXPECT_GT(out.torque.head<3>().norm(), 0.0);
+    }
+  }
+}
+
+TEST(Controller, OmniWrenchCarriesNoMomentAndIsExplainedByTorques) {
+  // the applied wrench is renderable: J_R^T f = tau with zero passive torques
+  auto omni = std::make_shared<PhantomOmni>();
+  auto probe = std::make_shared<Probe>(Eigen::Vector3d(0, -0.03, 0), Eigen::Vector3d::UnitY(), 0.1,
+                                       Eigen::Vector3d::Zero());
+  Controller c(omni, probe, no_ramp());
+  std::mt19937 rng(52);
+  CycleOutput out;
+  for (int trial = 0; trial < 200; ++trial) {
+    const JointVector q = random_within(rng, omni->lower(), omni->upper());
+    c.step(q.data(), JointVector::Zero(6).eval().data(), out);
+    Pose T;
+    Jacobian J;
+    omni->forward_jacobian(q.data(), T, J);
+    EXPECT_LT(out.wrench.tail<3>().norm(), 1e-12);
+    EXPECT_LT((J.transpose() * out.wrench - out.torque).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
+TEST(Controller, PlanarUnderActuatedPullsTowardMechanismAtHandleAngle) {
+  // paper section V: with W_e* on the un-powered joint, the range-space term moves the
+  // handle along the circle to the mechanism position at the handle's own angle
+  PlanarScene s;
+  Controller c(s.robot, s.arm, no_ramp());
+  CycleOutput out;
+  for (double alpha : {-0.8, -0.2, 0.4, 1.1}) {
+    for (double delta : {-0.5, -0.2, 0.2, 0.5}) {
+      c.reset();
+      const JointVector q = s.q(s.R, alpha, alpha + delta);
+      c.step(q.data(), JointVector::Zero(3).eval().data(), out);
+      const Eigen::Vector3d f = out.wrench.head<3>();
+      const Eigen::Vector3d tangent(-std::sin(alpha), std::cos(alpha), 0.0);
+      // on the circle: the force runs along the path toward the handle's angle
+      EXPECT_GT(f.normalized().dot(tangent) * (delta > 0 ? 1.0 : -1.0), 0.99) << alpha << " " << delta;
+      const Eigen::Vector3d target =
+          s.pivot + s.R * Eigen::Vector3d(std::cos(alpha + delta), std::sin(alpha + delta), 0.0);
+      EXPECT_GT(f.normalized().dot((target - out.handle_pose.translation()).normalized()),
+                std::cos(std::abs(delta) / 2.0) - 1e-3);
+      // the un-powered placement is the arm at the handle's angle
+      EXPECT_NEAR(out.theta_star[0], alpha + delta, 1e-6);
+      EXPECT_EQ(out.torque[2], 0.0);
+    }
+  }
+}
+
+TEST(Controller, PlanarFarStartPullsToCircleSlightlyTowardHandleAngle) {
+  // paper Fig. 10: far from the circle, a large force brings the handle to the circle,
+  // directed slightly toward the mechanism position at the handle's angle
+  PlanarScene s;
+  Controller c(s.robot, s.arm, no_ramp());
+  CycleOutput out;
+  const double alpha = 0.3, delta = 0.1;
+  const JointVector q = s.q(s.R + 0.03, alpha, alpha + delta);
+  c.step(q.data(), JointVector::Zero(3).eval().data(), out);
+  const Eigen::Vector3d f = out.wrench.head<3>();
+  const Eigen::Vector3d radial(std::cos(alpha), std::sin(alpha), 0.0);
+  const Eigen::Vector3d tangent(-std::sin(alpha), std::cos(alpha), 0.0);
+  EXPECT_LT(f.dot(radial), 0.0);                        // toward the circle
+  EXPECT_GT(std::abs(f.dot(radial)), std::abs(f.dot(tangent)));  // mostly toward it
+  EXPECT_GT(f.dot(tangent), 0.0);                       // and slightly toward the handle angle
+  // the null-space law alone (paper Fig. 9) has no tangential pull
+  ControllerSettings ns = no_ramp();
+  ns.law = ControlLaw::kNullSpace;
+  Controller c9(s.robot, s.arm, ns);
+  c9.step(q.data(), JointVector::Zero(3).eval().data(), out);
+  EXPECT_LT(std::abs(out.wrench.head<3>().normalized().dot(tangent)), 1e-6);
+}
+
+TEST(Controller, FullyActuatedFreeAlongMechanismStiffAcross) {
+  auto arm6 = six_dof_arm();
+  JointVector q0(6);
+  q0 << 0.2, -0.4, 0.9, 0.3, 0.7, -0.2;
+  Pose T0;
+  arm6->forward(q0.data(), T0);
+  // a circle mechanism through the device's pose: pivot one length ahead on the stylus
+  const double L = 0.08;
+  auto mech = std::make_shared<PlanarArm>(T0.translation() + L * T0.linear().col(2),
+                                          T0.linear().col(1), L, -T0.linear().col(2));
+  Controller c(arm6, mech, no_ramp());
+  EXPECT_FALSE(c.model().under_actuated_term);
+  CycleOutput out;
+  const JointVector zero = JointVector::Zero(6);
+  // resting on the mechanism
+  c.step(q0.data(), zero.data(), out);
+  EXPECT_LT(out.wrench.norm(), 1e-9);
+  // moved along the free direction (the circle), by a large amount
+  for (double th : {0.05, 0.3, -0.6}) {
+    Pose Tm;
+    mech->forward(&th, Tm);
+    const JointVector q = inverse_kinematics(*arm6, Tm, q0);
+    c.step(q.data(), zero.data(), out);
+    EXPECT_LT(out.wrench.norm(), 1e-7) << th;
+    // moving along it at speed meets no damping either
+    Pose Tp;
+    Jacobian Jm, JR;
+    mech->forward_jacobian(&th, Tp, Jm);
+    arm6->forward_jacobian(q.data(), Tp, JR);
+    const Eigen::VectorXd dq =
+        Eigen::MatrixXd(JR).completeOrthogonalDecomposition().solve(Eigen::VectorXd(Jm * 0.5));
+    c.step(q.data(), dq.data(), out);
+    EXPECT_LT(out.wrench.norm(), 1e-7) << th;
+  }
+  // pushed across: radially, along the plane normal, and tilted about the radial axis
+  const Vector6 kp = c.model().kp;
+  const Eigen::Vector3d radial = -T0.linear().col(2), normal = T0.linear().col(1);
+  for (int dir = 0; dir < 3; ++dir) {
+    Pose Tx = T0;
+    Vector6 expected = Vector6::Zero();
+    const double d = 1e-3;
+    if (dir == 0) {
+      Tx.translation() += d * radial;
+      expected.head<3>() = -kp[0] * d * radial;
+    } else if (dir == 1) {
+      Tx.translation() += d * normal;
+      expected.head<3>() = -kp[0] * d * normal;
+    } else {
+      Tx.linear() = Eigen::AngleAxisd(d, radial).toRotationMatrix() * T0.linear();
+      expected.tail<3>() = -kp[3] * d * radial;
+    }
+    const JointVector q = inverse_kinematics(*arm6, Tx, q0);
+    c.step(q.data(), zero.data(), out);
+    EXPECT_LT((out.wrench - expected).norm(), 1e-3 * expected.norm()) << dir;
+  }
+}
+
+TEST(Controller, FuzzedInputsNeverGiveNonFiniteOrOverLimitTorques) {
+  auto omni = std::make_shared<PhantomOmni>();
+  auto probe = std::make_shared<Probe>(Eigen::Vector3d(0, -0.05, 0), Eigen::Vector3d::UnitY(), 0.1,
+                                       Eigen::Vector3d::Zero());
+  Controller c(omni, probe, no_ramp());
+  std::mt19937 rng(61);
+  const double specials[] = {std::nan(""), kInf, -kInf, 1e300, -1e300, 1e12, 0.0, -3.0, 40.0};
+  std::uniform_int_distribution<int> pick(0, 8), idx(0, 5);
+  std::normal_distribution<double> g(0.0, 2.0);
+  CycleOutput out;
+  for (int trial = 0; trial < 20000; ++trial) {
+    JointVector q(6), dq(6);
+    for (int i = 0; i < 6; ++i) {
+      q[i] = g(rng);
+      dq[i] = 10.0 * g(rng);
+    }
+    if (trial % 2) (trial % 4 == 1 ? q : dq)[idx(rng)] = specials[pick(rng)];
+    const std::uint32_t st = c.step(q.data(), dq.data(), out);
+    ASSERT_TRUE(out.torque.allFinite());
+    ASSERT_TRUE(out.wrench.allFinite());
+    for (int i = 0; i < 6; ++i) ASSERT_LE(std::abs(out.torque[i]), omni->torque_limit()[i] * (1 + 1e-12));
+    ASSERT_LE(out.wrench.head<3>().norm(), omni->max_force() * (1 + 1e-12));
+    if (!q.allFinite() || !dq.allFinite()) {
+      ASSERT_TRUE(st & status::kFaultNonFiniteInput);
+      ASSERT_EQ(out.torque.cwiseAbs().maxCoeff(), 0.0);
+    }
+  }
+}
+
+TEST(Controller, RampInBoundsTheFirstCyclesAndRestartsAfterAFault) {
+  auto omni = std::make_shared<PhantomOmni>();
+  auto arm = std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0, -0.05), Eigen::Vector3d::UnitZ(),
+                                         0.05, Eigen::Vector3d::UnitX());
+  ControllerSettings s;
+  s.ramp_time_s = 0.1;
+  Controller c(omni, arm, s);
+  const long N = c.model().ramp_cycles;
+  ASSERT_EQ(N, 100);
+  JointVector q(6);
+  q << 0.3, 0.9, 0.6, 0.0, 0.5, 0.0;  // far from the circle: force saturates
+  const JointVector dq = JointVector::Zero(6);
+  CycleOutput out;
+  for (long k = 1; k <= 150; ++k) {
+    c.step(q.data(), dq.data(), out);
+    const double bound = omni->max_force() * std::min(1.0, double(k) / N);
+    EXPECT_LE(out.wrench.head<3>().norm(), bound * (1 + 1e-12)) << k;
+    EXPECT_EQ(bool(out.status & status::kRamping), k < N) << k;
+  }
+  EXPECT_NEAR(out.wrench.head<3>().norm(), omni->max_force(), 1e-9);
+  JointVector bad = q;
+  bad[1] = std::nan("");
+  c.step(bad.data(), dq.data(), out);
+  EXPECT_TRUE(out.status & status::kFaultNonFiniteInput);
+  c.step(q.data(), dq.data(), out);
+  EXPECT_LE(out.wrench.head<3>().norm(), omni->max_force() / N * (1 + 1e-12));
+}
+
+TEST(Controller, WatchdogRestartsRampAfterAGap) {
+  auto omni = std::make_shared<PhantomOmni>();
+  auto arm = std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0, -0.05), Eigen::Vector3d::UnitZ(),
+                                         0.05, Eigen::Vector3d::UnitX());
+  ControllerSettings s;
+  s.ramp_time_s = 0.01;
+  s.watchdog_s = 0.005;
+  Controller c(omni, arm, s);
+  JointVector q(6);
+  q << 0.3, 0.9, 0.6, 0.0, 0.5, 0.0;
+  const JointVector dq = JointVector::Zero(6);
+  CycleOutput out;
+  double t = 0.0;
+  for (int k = 0; k < 20; ++k, t += 1e-3) c.step(q.data(), dq.data(), out, t);
+  EXPECT_FALSE(out.status & status::kRamping);
+  c.step(q.data(), dq.data(), out, t + 0.1);  // the loop stalled for 100 ms
+  EXPECT_TRUE(out.status & status::kWatchdog);
+  EXPECT_TRUE(out.status & status::kRamping);
+}
+
+TEST(Controller, BadSettingsNameTheField) {
+  auto omni = std::make_shared<PhantomOmni>();
+  auto arm = std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0, -0.05), Eigen::Vector3d::UnitZ(),
+                                         0.05, Eigen::Vector3d::UnitX());
+  ControllerSettings s;
+  Vector6 kp = Vector6::Ones();
+  kp[2] = -1.0;
+  s.kp = kp;
+  try {
+    Controller c(omni, arm, s);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("kp"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("-1"), std::string::npos);
+  }
+}

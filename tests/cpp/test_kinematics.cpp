@@ -1,0 +1,145 @@
+// Kinematics: Jacobians against central differences, closed forms of eq. 2 and of the
+// published PHANTOM Omni gimbal-centre formula.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "test_support.hpp"
+
+using namespace virtmech;
+using namespace vmtest;
+
+namespace {
+
+void expect_mechanism_jacobian(const Mechanism& m, unsigned seed) {
+  std::mt19937 rng(seed);
+  for (int trial = 0; trial < 50; ++trial) {
+    const JointVector th = random_within(rng, m.lower(), m.upper(), 1.2);
+    Pose T;
+    Jacobian J;
+    m.forward_jacobian(th.data(), T, J);
+    const Jacobian Jn = numeric_jacobian(
+        [&](const JointVector& x, Pose& out) { m.forward(x.data(), out); }, th);
+    EXPECT_LT((J - Jn).cwiseAbs().maxCoeff(), 1e-7) << m.type_name() << " trial " << trial;
+    Pose T2;
+    m.forward(th.data(), T2);
+    EXPECT_LT((T.matrix() - T2.matrix()).cwiseAbs().maxCoeff(), 1e-15);
+  }
+}
+
+void expect_device_jacobian(const Device& d, unsigned seed) {
+  std::mt19937 rng(seed);
+  for (int trial = 0; trial < 50; ++trial) {
+    const JointVector q = random_within(rng, d.lower(), d.upper(), 1.5);
+    Pose T;
+    Jacobian J;
+    d.forward_jacobian(q.data(), T, J);
+    const Jacobian Jn =
+        numeric_jacobian([&](const JointVector& x, Pose& out) { d.forward(x.data(), out); }, q);
+    EXPECT_LT((J - Jn).cwiseAbs().maxCoeff(), 1e-7) << d.name() << " trial " << trial;
+  }
+}
+
+}  // namespace
+
+TEST(Kinematics, MechanismJacobiansMatchCentralDifferences) {
+  const Eigen::Vector3d n = Eigen::Vector3d(1, 2, 3).normalized();
+  expect_mechanism_jacobian(PlanarArm({0.1, -0.2, 0.3}, n, 0.12, any_orthogonal(n)), 1);
+  expect_mechanism_jacobian(Probe({0.0, 0.01, -0.05}, n, 0.1, Eigen::Vector3d::Zero()), 2);
+  expect_mechanism_jacobian(PointPivot({0.0, 0.0, 0.0}, Eigen::Vector3d::UnitY(), 0.08,
+                                       Eigen::Vector3d::Zero()), 3);
+  expect_mechanism_jacobian(LineGuide({0.02, 0.0, 0.0}, Eigen::Vector3d::UnitX(), 0.09,
+                                      Eigen::Vector3d::UnitY()), 4);
+  std::vector<Joint> joints(3);
+  joints[0].type = JointType::kPrismatic;
+  joints[0].axis = {1, 1, 0};
+  joints[1].axis = {0, 0, 1};
+  joints[1].origin.translation() = Eigen::Vector3d(0.1, 0, 0);
+  joints[2].axis = {0, 1, 0};
+  joints[2].origin = Pose(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()));
+  Pose handle = Pose::Identity();
+  handle.translation() = Eigen::Vector3d(0.05, 0.02, 0.01);
+  expect_mechanism_jacobian(SerialChain(joints, handle, Pose::Identity(), 0.1), 5);
+}
+
+TEST(Kinematics, DeviceJacobiansMatchCentralDifferences) {
+  expect_device_jacobian(PhantomOmni(), 11);
+  PhantomOmniParams p;
+  p.gimbal_offset = {0.3, -0.2, 1.0};
+  p.gimbal_sign = {-1.0, 1.0, -1.0};
+  expect_device_jacobian(PhantomOmni(p), 12);
+  expect_device_jacobian(Planar3R(0.2, 0.15, Pose::Identity(), 1.0, 5.0), 13);
+  expect_device_jacobian(*six_dof_arm(), 14);
+}
+
+TEST(Kinematics, PlanarArmIsEquationTwo) {
+  // eq. 2: x = L cos(theta), y = L sin(theta), orientation theta, in the x-y plane
+  const double L = 0.1;
+  PlanarArm arm(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), L, Eigen::Vector3d::UnitX());
+  for (double th = -3.0; th <= 3.0; th += 0.25) {
+    Pose T;
+    arm.forward(&th, T);
+    EXPECT_NEAR(T.translation().x(), L * std::cos(th), 1e-15);
+    EXPECT_NEAR(T.translation().y(), L * std::sin(th), 1e-15);
+    EXPECT_NEAR(T.translation().z(), 0.0, 1e-15);
+    // the stylus points from the handle to the pivot; its in-plane angle advances with theta
+    const Eigen::Vector3d z = T.linear().col(2);
+    EXPECT_LT((z - Eigen::Vector3d(-std::cos(th), -std::sin(th), 0.0)).norm(), 1e-15);
+    EXPECT_LT((T.linear().col(1) - Eigen::Vector3d::UnitZ()).norm(), 1e-15);
+    const double th0 = 0.0;
+    Pose T0;
+    arm.forward(&th0, T0);
+    const Eigen::Vector3d w = so3_log(T.linear() * T0.linear().transpose());
+    EXPECT_NEAR(w.z(), th, 1e-12);
+  }
+}
+
+TEST(Kinematics, OmniGimbalCentreIsJarilloSilvaFormula) {
+  PhantomOmni omni;
+  const double l1 = omni.params().l1, l2 = omni.params().l2;
+  std::mt19937 rng(21);
+  for (int trial = 0; trial < 200; ++trial) {
+    const JointVector q = random_within(rng, omni.lower(), omni.upper());
+    Pose T;
+    omni.forward(q.data(), T);
+    const double t1 = q[0], t2 = q[1], t3 = q[2];
+    const double x = -std::sin(t1) * (l1 * std::cos(t2) + l2 * std::sin(t3));
+    const double y = l1 * std::sin(t2) - l2 * std::cos(t3) + l2;
+    const double z = -l1 + std::cos(t1) * (l1 * std::cos(t2) + l2 * std::sin(t3));
+    EXPECT_LT((T.translation() - Eigen::Vector3d(x, y, z)).norm(), 1e-14) << trial;
+  }
+}
+
+TEST(Kinematics, OmniGimbalAxesMeetAtHandleOrigin) {
+  // the passive joints produce no linear velocity of the handle origin
+  PhantomOmni omni;
+  std::mt19937 rng(22);
+  for (int trial = 0; trial < 100; ++trial) {
+    const JointVector q = random_within(rng, omni.lower(), omni.upper());
+    Pose T;
+    Jacobian J;
+    omni.forward_jacobian(q.data(), T, J);
+    EXPECT_LT(J.block(0, 3, 3, 3).cwiseAbs().maxCoeff(), 1e-15);
+    EXPECT_FALSE(omni.actuated(3) || omni.actuated(4) || omni.actuated(5));
+    EXPECT_TRUE(omni.actuated(0) && omni.actuated(1) && omni.actuated(2));
+  }
+}
+
+TEST(Kinematics, InvalidConstructionNamesTheParameter) {
+  auto message = [](auto&& make) {
+    try {
+      make();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  EXPECT_NE(message([] { PlanarArm({0, 0, 0}, {0, 0, 1}, -1.0, {1, 0, 0}); }).find("length"),
+            std::string::npos);
+  EXPECT_NE(message([] { PlanarArm({0, 0, 0}, {0, 0, 2}, 1.0, {1, 0, 0}); }).find("normal"),
+            std::string::npos);
+  EXPECT_NE(message([] { Probe({0, 0, 0}, {0, 0, 0}, 0.1, {0, 0, 0}); }).find("plane_normal"),
+            std::string::npos);
+  EXPECT_NE(message([] { PlanarArm({0, 0, 0}, {0, 0, 1}, 1.0, {0, 0, 1}); }).find("zero_direction"),
+            std::string::npos);
+}
