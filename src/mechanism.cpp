@@ -79,6 +79,11 @@ JointVector Mechanism::upper() const {
 
 // ---------------------------------------------------------------------------------------
 
+static double checked_length(double length) {
+  require_positive("length", length);
+  return length;
+}
+
 static KinematicChain planar_arm_chain(const Eigen::Vector3d& pivot, const Eigen::Vector3d& n,
                                        double length, const Eigen::Vector3d& d) {
   // base frame: x = d, y = n x d, z = n; the handle at length*d with z_h = -d, y_h = n
@@ -104,7 +109,7 @@ static Eigen::Vector3d checked_zero_direction(const Eigen::Vector3d& d, const Ei
 PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal, double length,
                      const Eigen::Vector3d& zero_direction)
     : Mechanism("PlanarArm",
-                planar_arm_chain(pivot, require_unit("normal", normal), length,
+                planar_arm_chain(pivot, require_unit("normal", normal), checked_length(length),
                                  checked_zero_direction(zero_direction, normal.normalized())),
                 length, JointVector::Zero(1)),
       pivot_(pivot), normal_(normal.normalized()),
@@ -122,11 +127,6 @@ static KinematicChain probe_chain(const Eigen::Vector3d& p, const Eigen::Vector3
                                make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitY())};
   for (const Joint& j : wrist_rrr()) joints.push_back(j);
   return KinematicChain(tangent_frame(p, n, t1), joints, handle_behind_tip(length));
-}
-
-static double checked_length(double length) {
-  require_positive("length", length);
-  return length;
 }
 
 Probe::Probe(const Eigen::Vector3d& plane_point, const Eigen::Vector3d& plane_normal,

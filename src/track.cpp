@@ -10,18 +10,22 @@ namespace virtmech {
 
 namespace {
 
+// the mechanism's pose, Jacobian, error and weighted cost at theta, and g = J^T W e
 struct Eval {
   Pose T;
   Jacobian J;
   Vector6 e;
-  double cost;
+  JointVector g;
+  double cost = 0.0;
 };
 
 inline void evaluate(const Mechanism& m, const Pose& target, const JointVector& theta,
                      const Vector6& W, Eval& ev) noexcept {
   m.forward_jacobian(theta.data(), ev.T, ev.J);
   ev.e = pose_error(target, ev.T);
-  ev.cost = ev.e.dot(W.cwiseProduct(ev.e));
+  const Vector6 We = W.cwiseProduct(ev.e);
+  ev.cost = ev.e.dot(We);
+  ev.g.noalias() = ev.J.transpose() * We;  // eq. 23's residual; -1/2 of the cost gradient
 }
 
 inline double cost_at(const Mechanism& m, const Pose& target, const JointVector& theta,
@@ -30,6 +34,12 @@ inline double cost_at(const Mechanism& m, const Pose& target, const JointVector&
   m.forward(theta.data(), T);
   const Vector6 e = pose_error(target, T);
   return e.dot(W.cwiseProduct(e));
+}
+
+inline void clamp_to_limits(const KinematicChain& chain, JointVector& x) noexcept {
+  for (int i = 0; i < chain.dof(); ++i) {
+    x[i] = std::min(std::max(x[i], chain.joint(i).lower), chain.joint(i).upper);
+  }
 }
 
 }  // namespace
@@ -41,10 +51,7 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
   const KinematicChain& chain = mechanism.chain();
   TrackResult result;
   theta = theta0;
-  for (int i = 0; i < n; ++i) {
-    theta[i] = std::min(std::max(theta[i], chain.joint(i).lower), chain.joint(i).upper);
-  }
-  // the largest step per joint
+  clamp_to_limits(chain, theta);
   JointVector step_cap(n);
   for (int i = 0; i < n; ++i) {
     step_cap[i] = chain.joint(i).type == JointType::kRevolute
@@ -52,57 +59,74 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
                       : options.max_step_prismatic * mechanism.length_scale();
   }
 
-  Eval ev;
+  Eval ev, trial_ev;
   evaluate(mechanism, target, theta, weights, ev);
   JointMatrix H(n, n);
-  JointVector g(n), delta(n), trial(n);
+  JointVector delta(n), trial(n);
   Eigen::LLT<JointMatrix> llt(n);
 
   for (int it = 0; it < options.max_iterations; ++it) {
-    const Jacobian WJ = weights.asDiagonal() * ev.J;
-    H.noalias() = ev.J.transpose() * WJ;
-    g.noalias() = WJ.transpose() * ev.e;  // J^T W e: eq. 23's residual
-    if (g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
+    if (ev.g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
       result.converged = true;
       break;
     }
-    const double mu = options.damping * (H.trace() / n) + 1e-300;
-    H.diagonal().array() += mu;
+    // eq. 18: delta = (J^T W J)^-1 J^T W (X_R - X_V), damped so rank-deficient J^T W J
+    // gives the minimum-norm step
+    const Jacobian WJ = weights.asDiagonal() * ev.J;
+    H.noalias() = ev.J.transpose() * WJ;
+    H.diagonal().array() += options.damping * (H.trace() / n) + 1e-300;
     llt.compute(H);
-    delta = llt.solve(g);  // eq. 18: (J^T W J)^-1 J^T W (X_R - X_V)
-    // limit the step, keeping its direction
+    delta = llt.solve(ev.g);
     double scale = 1.0;
     for (int i = 0; i < n; ++i) {
       const double a = std::abs(delta[i]);
       if (a > step_cap[i]) scale = std::min(scale, step_cap[i] / a);
     }
     delta *= scale;
-    // backtrack while the cost rises (the linearisation of eq. 16 is only local)
-    double alpha = 1.0;
-    bool accepted = false;
-    for (int k = 0; k < 8; ++k) {
-      trial = theta + alpha * delta;
-      for (int i = 0; i < n; ++i) {
-        trial[i] = std::min(std::max(trial[i], chain.joint(i).lower), chain.joint(i).upper);
+    result.iterations = it + 1;
+    const double slope0 = ev.g.dot(delta);  // > 0: delta descends the weighted cost
+
+    if (scale == 1.0 && delta.cwiseQuotient(step_cap).cwiseAbs().maxCoeff() < 1e-4) {
+      // near the solution cost differences are at rounding level: take the step, and if
+      // the directional derivative changed sign, go to its zero along delta (secant)
+      trial = theta + delta;
+      clamp_to_limits(chain, trial);
+      evaluate(mechanism, target, trial, weights, trial_ev);
+      const double slope1 = trial_ev.g.dot(delta);
+      if (slope0 > 0.0 && slope1 < 0.0) {
+        trial = theta + (slope0 / (slope0 - slope1)) * delta;
+        clamp_to_limits(chain, trial);
+        evaluate(mechanism, target, trial, weights, trial_ev);
       }
-      if (cost_at(mechanism, target, trial, weights) <= ev.cost * (1.0 + 1e-12) + 1e-300) {
-        accepted = true;
+    } else {
+      // far from it the linearisation of eq. 16 is only local: backtrack on the cost
+      double alpha = 1.0;
+      bool accepted = false;
+      for (int k = 0; k < 10; ++k) {
+        trial = theta + alpha * delta;
+        clamp_to_limits(chain, trial);
+        if (cost_at(mechanism, target, trial, weights) <= ev.cost) {
+          accepted = true;
+          break;
+        }
+        alpha *= 0.5;
+      }
+      if (!accepted) {  // no descent along delta: a (constrained) minimum
+        result.converged = true;
         break;
       }
-      alpha *= 0.5;
-    }
-    result.iterations = it + 1;
-    if (!accepted) {  // no descent left at this resolution: a (constrained) minimum
-      result.converged = true;
-      break;
+      evaluate(mechanism, target, trial, weights, trial_ev);
     }
     const double moved = (trial - theta).cwiseAbs().maxCoeff();
     theta = trial;  // eq. 20
-    evaluate(mechanism, target, theta, weights, ev);
+    ev = trial_ev;
     if (moved <= options.step_tolerance) {
       result.converged = true;
       break;
     }
+  }
+  if (!result.converged && ev.g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
+    result.converged = true;
   }
   result.residual = std::sqrt(std::max(ev.cost, 0.0));
   return result;

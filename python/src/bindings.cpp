@@ -1,0 +1,764 @@
+// Python bindings: translation only. Inputs are converted with NumPy and their shapes
+// checked here (so errors name the parameter); every rule lives in the C++ core.
+#include <nanobind/eigen/dense.h>
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/shared_ptr.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <cmath>
+#include <sstream>
+#include <string>
+
+#include "virtmech/validate.hpp"
+#include "virtmech/virtmech.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+using namespace virtmech;
+
+namespace {
+
+struct PlacementResult {
+  JointVector theta;
+  int iterations = 0;
+  double residual = 0.0;
+  bool converged = false;
+};
+
+using Array1 = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+
+std::string short_repr(nb::handle h) {
+  std::string s = nb::cast<std::string>(nb::repr(h));
+  if (s.size() > 80) s = s.substr(0, 77) + "...";
+  return s;
+}
+
+std::string shape_of(nb::handle a) { return nb::cast<std::string>(nb::repr(a.attr("shape"))); }
+
+// a float64, C-contiguous NumPy array of `obj`, or a TypeError naming `name`
+nb::object as_array(const char* name, nb::handle obj, const char* expected) {
+  // leaked on purpose: must outlive the interpreter's finalisation
+  static nb::object* asarray =
+      new nb::object(nb::module_::import_("numpy").attr("ascontiguousarray"));
+  if (obj.is_none()) {
+    throw nb::type_error((std::string(name) + ": expected " + expected + ", got None").c_str());
+  }
+  try {
+    return (*asarray)(obj, "dtype"_a = "float64");
+  } catch (nb::python_error&) {
+    throw nb::type_error(
+        (std::string(name) + ": expected " + expected + ", got " + short_repr(obj)).c_str());
+  }
+}
+
+Eigen::VectorXd to_vector(const char* name, nb::handle obj, long n) {
+  const std::string expected =
+      n >= 0 ? "an array of shape (" + std::to_string(n) + ",)" : std::string("a 1-D array");
+  nb::object a = as_array(name, obj, expected.c_str());
+  const auto nd = nb::cast<long>(a.attr("ndim"));
+  const auto size = nb::cast<long>(a.attr("size"));
+  if (nd != 1 || (n >= 0 && size != n)) {
+    throw nb::value_error((std::string(name) + ": expected " + expected + ", got shape " +
+                           shape_of(a) + " (" + short_repr(obj) + ")").c_str());
+  }
+  auto arr = nb::cast<Array1>(a);
+  return Eigen::Map<const Eigen::VectorXd>(arr.data(), size);
+}
+
+Eigen::Vector3d to_vec3(const char* name, nb::handle obj) { return to_vector(name, obj, 3); }
+Vector6 to_vec6(const char* name, nb::handle obj) { return to_vector(name, obj, 6); }
+
+Eigen::MatrixXd to_matrix(const char* name, nb::handle obj, long rows, long cols) {
+  std::ostringstream os;
+  os << "an array of shape (" << rows << ", " << (cols >= 0 ? std::to_string(cols) : "n") << ")";
+  nb::object a = as_array(name, obj, os.str().c_str());
+  const auto nd = nb::cast<long>(a.attr("ndim"));
+  if (nd != 2) {
+    throw nb::value_error((std::string(name) + ": expected " + os.str() + ", got shape " +
+                           shape_of(a)).c_str());
+  }
+  const auto shape = nb::cast<nb::tuple>(a.attr("shape"));
+  const long r = nb::cast<long>(shape[0]), c = nb::cast<long>(shape[1]);
+  if (r != rows || (cols >= 0 && c != cols)) {
+    throw nb::value_error((std::string(name) + ": expected " + os.str() + ", got shape " +
+                           shape_of(a)).c_str());
+  }
+  auto arr = nb::cast<nb::ndarray<const double, nb::ndim<2>, nb::c_contig, nb::device::cpu>>(a);
+  Eigen::MatrixXd M(r, c);
+  for (long i = 0; i < r; ++i)
+    for (long j = 0; j < c; ++j) M(i, j) = arr.data()[i * c + j];
+  return M;
+}
+
+Pose to_pose(const char* name, nb::handle obj) {
+  Pose T;
+  T.matrix() = to_matrix(name, obj, 4, 4);
+  require_pose(name, T);
+  return T;
+}
+
+double to_double(const char* name, nb::handle obj) {
+  try {
+    return nb::cast<double>(obj);
+  } catch (...) {
+    throw nb::type_error((std::string(name) + ": expected a number, got " + short_repr(obj)).c_str());
+  }
+}
+
+Eigen::Vector3d opt_vec3(const char* name, nb::handle obj) {
+  return obj.is_none() ? Eigen::Vector3d::Zero() : to_vec3(name, obj);
+}
+
+// joint values for a chain of `n` joints: fast path for float64 arrays, else converted
+JointVector joint_values(const char* name, nb::handle obj, int n) {
+  if (nb::isinstance<Array1>(obj)) {
+    auto arr = nb::cast<Array1>(obj);
+    if (static_cast<int>(arr.shape(0)) == n) return Eigen::Map<const JointVector>(arr.data(), n);
+  }
+  return to_vector(name, obj, n);
+}
+
+std::vector<Joint> to_joints(nb::handle seq) {
+  std::vector<Joint> joints;
+  for (nb::handle h : seq) {
+    if (!nb::isinstance<Joint>(h)) {
+      throw nb::type_error(("joints: expected a sequence of virtmech.Joint, got an item " + short_repr(h)).c_str());
+    }
+    joints.push_back(nb::cast<Joint>(h));
+  }
+  return joints;
+}
+
+nb::list to_list(const Eigen::Vector3d& v) {
+  nb::list l;
+  for (int i = 0; i < 3; ++i) l.append(v[i]);
+  return l;
+}
+
+JointType joint_type_from(const std::string& s) {
+  if (s == "revolute") return JointType::kRevolute;
+  if (s == "prismatic") return JointType::kPrismatic;
+  throw nb::value_error(("type: expected 'revolute' or 'prismatic', got '" + s + "'").c_str());
+}
+
+ControlLaw law_from(const std::string& s) {
+  if (s == "auto") return ControlLaw::kAuto;
+  if (s == "null_space") return ControlLaw::kNullSpace;
+  if (s == "under_actuated") return ControlLaw::kUnderActuated;
+  throw nb::value_error(
+      ("law: expected 'auto', 'null_space' or 'under_actuated', got '" + s + "'").c_str());
+}
+
+const char* law_name(ControlLaw l) {
+  switch (l) {
+    case ControlLaw::kNullSpace: return "null_space";
+    case ControlLaw::kUnderActuated: return "under_actuated";
+    default: return "auto";
+  }
+}
+
+ErrorVelocity error_velocity_from(const std::string& s) {
+  if (s == "relative") return ErrorVelocity::kRelative;
+  if (s == "handle") return ErrorVelocity::kHandle;
+  throw nb::value_error(
+      ("error_velocity: expected 'relative' or 'handle', got '" + s + "'").c_str());
+}
+
+nb::list status_names(std::uint32_t s) {
+  static const std::pair<std::uint32_t, const char*> names[] = {
+      {status::kRamping, "ramping"},
+      {status::kForceClamped, "force_clamped"},
+      {status::kTorqueClamped, "torque_clamped"},
+      {status::kNotConverged, "not_converged"},
+      {status::kWatchdog, "watchdog"},
+      {status::kFaultNonFiniteInput, "fault_nonfinite_input"},
+      {status::kFaultNonFiniteOutput, "fault_nonfinite_output"},
+      {status::kFaultBadSize, "fault_bad_size"}};
+  nb::list l;
+  for (const auto& [bit, name] : names)
+    if (s & bit) l.append(name);
+  return l;
+}
+
+template <typename T>
+void bind_kinematics(nb::class_<T>& cls) {
+  cls.def_prop_ro("dof", &T::dof, "Number of joints.")
+      .def(
+          "forward",
+          [](const T& self, nb::handle x) {
+            const JointVector v = joint_values("x", x, self.dof());
+            Pose P;
+            self.forward(v.data(), P);
+            return Eigen::Matrix4d(P.matrix());
+          },
+          "x"_a, "Handle pose (4, 4) at joint values x (dof,).")
+      .def(
+          "jacobian",
+          [](const T& self, nb::handle x) {
+            const JointVector v = joint_values("x", x, self.dof());
+            Pose P;
+            Jacobian J;
+            self.forward_jacobian(v.data(), P, J);
+            return Eigen::MatrixXd(J);
+          },
+          "x"_a,
+          "Geometric Jacobian (6, dof) at x: rows [v; w], handle-origin linear velocity then "
+          "angular velocity, world axes.")
+      .def_prop_ro("lower", [](const T& self) { return Eigen::VectorXd(self.lower()); },
+                   "Lower joint limits (dof,) [rad or m].")
+      .def_prop_ro("upper", [](const T& self) { return Eigen::VectorXd(self.upper()); },
+                   "Upper joint limits (dof,) [rad or m].")
+      .def_prop_ro("home", [](const T& self) { return Eigen::VectorXd(self.home()); },
+                   "Default joint values (dof,).");
+}
+
+nb::dict model_dict(const ControllerModel& m) {
+  nb::dict d;
+  d["kp"] = Eigen::VectorXd(m.kp);
+  d["kv"] = Eigen::VectorXd(m.kv);
+  d["w_a"] = Eigen::VectorXd(m.w_a);
+  d["w_e"] = Eigen::VectorXd(m.w_e);
+  d["w_e_star"] = Eigen::VectorXd(m.w_e_star);
+  d["length_scale"] = m.length_scale;
+  d["law"] = law_name(m.law);
+  d["under_actuated_term"] = m.under_actuated_term;
+  d["error_velocity"] = m.error_velocity == ErrorVelocity::kHandle ? "handle" : "relative";
+  d["period_s"] = m.period_s;
+  d["ramp_cycles"] = m.ramp_cycles;
+  d["watchdog_s"] = m.watchdog_s;
+  d["max_force"] = m.max_force;
+  d["max_torque"] = m.max_torque;
+  d["max_iterations"] = m.track.max_iterations;
+  d["max_iterations_initial"] = m.track_initial.max_iterations;
+  nb::list r;
+  for (bool b : m.renderable) r.append(b);
+  d["renderable"] = r;
+  return d;
+}
+
+}  // namespace
+
+NB_MODULE(_core, m) {
+  m.doc() = "virtmech core (C++): devices, virtual mechanisms and the controller cycle.";
+  m.attr("__version__") = VIRTMECH_VERSION_STRING;
+  m.attr("MAX_DOF") = kMaxDof;
+
+  // --- status bits (re-exported by virtmech.status)
+  m.attr("STATUS_OK") = status::kOk;
+  m.attr("STATUS_RAMPING") = status::kRamping;
+  m.attr("STATUS_FORCE_CLAMPED") = status::kForceClamped;
+  m.attr("STATUS_TORQUE_CLAMPED") = status::kTorqueClamped;
+  m.attr("STATUS_NOT_CONVERGED") = status::kNotConverged;
+  m.attr("STATUS_WATCHDOG") = status::kWatchdog;
+  m.attr("STATUS_FAULT_NONFINITE_INPUT") = status::kFaultNonFiniteInput;
+  m.attr("STATUS_FAULT_NONFINITE_OUTPUT") = status::kFaultNonFiniteOutput;
+  m.attr("STATUS_FAULT_BAD_SIZE") = status::kFaultBadSize;
+  m.attr("STATUS_FAULT_MASK") = status::kFaultMask;
+  m.def("status_names", &status_names, "status"_a, "Names of the bits set in a status word.");
+
+  // --- math
+  m.def(
+      "pose_error",
+      [](nb::handle a, nb::handle b) {
+        return Eigen::VectorXd(pose_error(to_pose("T_a", a), to_pose("T_b", b)));
+      },
+      "T_a"_a, "T_b"_a,
+      "Pose error e = [p_a - p_b; log(R_a R_b^T)] (6,): metres, then a rotation vector in "
+      "world axes [rad].");
+  m.def(
+      "so3_log", [](nb::handle R) { return Eigen::Vector3d(so3_log(to_matrix("R", R, 3, 3))); },
+      "R"_a, "Rotation vector (3,) of a rotation matrix (3, 3).");
+  m.def(
+      "so3_exp", [](nb::handle w) { return Eigen::Matrix3d(so3_exp(to_vec3("w", w))); }, "w"_a,
+      "Rotation matrix (3, 3) of a rotation vector (3,).");
+  auto filter = [](bool range) {
+    return [range](nb::handle J, nb::handle W) {
+      const Eigen::MatrixXd Jm = to_matrix("J", J, 6, -1);
+      if (Jm.cols() < 1 || Jm.cols() > kMaxDof) {
+        throw nb::value_error(("J: expected 1 to " + std::to_string(kMaxDof) +
+                               " columns, got " + std::to_string(Jm.cols())).c_str());
+      }
+      const Jacobian Jv = Jm;
+      nb::object Wa = as_array("W", W, "a (6,) or (6, 6) array");
+      Matrix6 Wm;
+      if (nb::cast<long>(Wa.attr("ndim")) == 1) {
+        Wm = to_vec6("W", Wa).asDiagonal();
+      } else {
+        Wm = to_matrix("W", Wa, 6, 6);
+      }
+      require_finite("W", Eigen::Map<const Eigen::VectorXd>(Wm.data(), 36));
+      return Eigen::MatrixXd(range ? range_filter(Jv, Wm) : null_filter(Jv, Wm));
+    };
+  };
+  m.def("range_filter", filter(true), "J"_a, "W"_a,
+        "Range-space filter P(W) = W J (J^T W J)^+ J^T (6, 6) (eq. 5). J (6, n); W a (6,) "
+        "diagonal or a (6, 6) symmetric positive semi-definite matrix.");
+  m.def("null_filter", filter(false), "J"_a, "W"_a, "Null-space filter N(W) = I - P(W) (eq. 9).");
+
+  // --- joints and chains
+  nb::class_<Joint>(m, "Joint", "One revolute or prismatic joint of a serial chain.")
+      .def(
+          "__init__",
+          [](Joint* self, const std::string& type, nb::handle axis, nb::handle origin,
+             double lower, double upper) {
+            Joint j;
+            j.type = joint_type_from(type);
+            j.axis = to_vec3("axis", axis);
+            if (origin.is_none()) {
+              j.origin = Pose::Identity();
+            } else {
+              nb::object a = as_array("origin", origin, "a (3,) position or a (4, 4) pose");
+              if (nb::cast<long>(a.attr("ndim")) == 1) {
+                j.origin = Pose::Identity();
+                j.origin.translation() = to_vec3("origin", a);
+              } else {
+                j.origin = to_pose("origin", a);
+              }
+            }
+            j.lower = lower;
+            j.upper = upper;
+            new (self) Joint(j);
+          },
+          "type"_a = "revolute", "axis"_a = nb::make_tuple(0.0, 0.0, 1.0), "origin"_a = nb::none(),
+          "lower"_a = -kInf, "upper"_a = kInf,
+          "A joint: type 'revolute' or 'prismatic'; axis (3,) in the joint frame; origin: pose "
+          "(4, 4) or position (3,) of the joint frame in the previous frame at zero; limits "
+          "[rad or m].")
+      .def_prop_ro("type", [](const Joint& j) {
+        return j.type == JointType::kRevolute ? "revolute" : "prismatic";
+      })
+      .def_prop_ro("axis", [](const Joint& j) { return j.axis; })
+      .def_prop_ro("origin", [](const Joint& j) { return Eigen::Matrix4d(j.origin.matrix()); })
+      .def_ro("lower", &Joint::lower)
+      .def_ro("upper", &Joint::upper)
+      .def("__repr__", [](const Joint& j) {
+        std::ostringstream os;
+        os << "Joint(type='" << (j.type == JointType::kRevolute ? "revolute" : "prismatic")
+           << "', axis=" << format_vector(j.axis)
+           << ", origin=" << format_vector(j.origin.translation()) << ")";
+        return os.str();
+      });
+
+  // --- mechanisms
+  nb::class_<Mechanism> mech(m, "Mechanism", "A virtual mechanism (base class).");
+  bind_kinematics(mech);
+  mech.def_prop_ro("type", &Mechanism::type_name)
+      .def_prop_ro("length_scale", &Mechanism::length_scale,
+                   "Characteristic length [m] weighting rotations against translations.")
+      .def_prop_ro("joints", [](const Mechanism& self) { return self.chain().joints(); });
+
+  nb::class_<PlanarArm, Mechanism>(
+      m, "PlanarArm",
+      "Paper Fig. 4 / eq. 2 in 3-D: a revolute joint at `pivot` about the unit `normal`, the "
+      "handle at distance `length` in direction R(theta) zero_direction, the stylus pointing "
+      "from the handle to the pivot.")
+      .def(
+          "__init__",
+          [](PlanarArm* self, nb::handle pivot, nb::handle normal, nb::handle length,
+             nb::handle zero_direction) {
+            const Eigen::Vector3d n = to_vec3("normal", normal);
+            Eigen::Vector3d d;
+            if (zero_direction.is_none()) {
+              // world x projected into the plane (world y if x is normal to it)
+              d = Eigen::Vector3d::UnitX() - n.normalized().x() * n.normalized();
+              if (d.norm() < 1e-6) d = Eigen::Vector3d::UnitY() - n.normalized().y() * n.normalized();
+              d.normalize();
+            } else {
+              d = to_vec3("zero_direction", zero_direction);
+            }
+            new (self) PlanarArm(to_vec3("pivot", pivot), n, to_double("length", length), d);
+          },
+          "pivot"_a, "normal"_a, "length"_a, "zero_direction"_a = nb::none())
+      .def_prop_ro("pivot", &PlanarArm::pivot)
+      .def_prop_ro("normal", &PlanarArm::normal)
+      .def_prop_ro("length", &PlanarArm::length)
+      .def_prop_ro("zero_direction", &PlanarArm::zero_direction)
+      .def("to_dict", [](const PlanarArm& a) {
+        nb::dict d;
+        d["type"] = "PlanarArm";
+        d["pivot"] = to_list(a.pivot());
+        d["normal"] = to_list(a.normal());
+        d["length"] = a.length();
+        d["zero_direction"] = to_list(a.zero_direction());
+        return d;
+      }, "The mechanism's parameters as a JSON-ready dict.");
+
+  nb::class_<Probe, Mechanism>(
+      m, "Probe",
+      "Paper Fig. 3, PPRRR: the tip slides on the plane (plane_point, unit plane_normal); "
+      "three revolute joints meet at the tip; the handle is `length` back along the stylus.")
+      .def(
+          "__init__",
+          [](Probe* self, nb::handle p, nb::handle n, nb::handle length, nb::handle tangent) {
+            new (self) Probe(to_vec3("plane_point", p), to_vec3("plane_normal", n),
+                             to_double("length", length), opt_vec3("tangent", tangent));
+          },
+          "plane_point"_a, "plane_normal"_a, "length"_a, "tangent"_a = nb::none())
+      .def_prop_ro("plane_point", &Probe::plane_point)
+      .def_prop_ro("plane_normal", &Probe::plane_normal)
+      .def_prop_ro("tangent", &Probe::tangent)
+      .def_prop_ro("length", &Probe::length)
+      .def("to_dict", [](const Probe& a) {
+        nb::dict d;
+        d["type"] = "Probe";
+        d["plane_point"] = to_list(a.plane_point());
+        d["plane_normal"] = to_list(a.plane_normal());
+        d["length"] = a.length();
+        d["tangent"] = to_list(a.tangent());
+        return d;
+      });
+
+  nb::class_<PointPivot, Mechanism>(
+      m, "PointPivot", "A probe whose tip is pinned at `point` (RRR at the tip).")
+      .def(
+          "__init__",
+          [](PointPivot* self, nb::handle p, nb::handle n, nb::handle length, nb::handle t) {
+            new (self) PointPivot(to_vec3("point", p), to_vec3("normal", n),
+                                  to_double("length", length), opt_vec3("tangent", t));
+          },
+          "point"_a, "normal"_a = nb::make_tuple(0.0, 0.0, 1.0), "length"_a = 0.1,
+          "tangent"_a = nb::none())
+      .def_prop_ro("point", &PointPivot::point)
+      .def_prop_ro("normal", &PointPivot::normal)
+      .def_prop_ro("length", &PointPivot::length)
+      .def("to_dict", [](const PointPivot& a) {
+        nb::dict d;
+        d["type"] = "PointPivot";
+        d["point"] = to_list(a.point());
+        d["normal"] = to_list(a.normal());
+        d["length"] = a.length();
+        d["tangent"] = to_list(a.tangent());
+        return d;
+      });
+
+  nb::class_<LineGuide, Mechanism>(
+      m, "LineGuide", "A probe whose tip slides on a line (P + RRR at the tip).")
+      .def(
+          "__init__",
+          [](LineGuide* self, nb::handle p, nb::handle dir, nb::handle length, nb::handle n) {
+            new (self) LineGuide(to_vec3("point", p), to_vec3("direction", dir),
+                                 to_double("length", length), opt_vec3("normal", n));
+          },
+          "point"_a, "direction"_a, "length"_a = 0.1, "normal"_a = nb::none())
+      .def_prop_ro("point", &LineGuide::point)
+      .def_prop_ro("direction", &LineGuide::direction)
+      .def_prop_ro("normal", &LineGuide::normal)
+      .def_prop_ro("length", &LineGuide::length)
+      .def("to_dict", [](const LineGuide& a) {
+        nb::dict d;
+        d["type"] = "LineGuide";
+        d["point"] = to_list(a.point());
+        d["direction"] = to_list(a.direction());
+        d["length"] = a.length();
+        d["normal"] = to_list(a.normal());
+        return d;
+      });
+
+  nb::class_<SerialChain, Mechanism>(
+      m, "SerialChain", "Any serial chain of revolute / prismatic joints as a mechanism.")
+      .def(
+          "__init__",
+          [](SerialChain* self, nb::handle joints, nb::handle handle, nb::handle base,
+             nb::handle length_scale) {
+            const Pose H = handle.is_none() ? Pose::Identity() : to_pose("handle", handle);
+            const Pose B = base.is_none() ? Pose::Identity() : to_pose("base", base);
+            new (self) SerialChain(to_joints(joints), H, B, to_double("length_scale", length_scale));
+          },
+          "joints"_a, "handle"_a = nb::none(), "base"_a = nb::none(), "length_scale"_a = 0.1,
+          "joints: sequence of Joint; handle, base: (4, 4) poses; length_scale [m].")
+      .def("to_dict", [](const SerialChain& a) {
+        nb::dict d;
+        d["type"] = "SerialChain";
+        nb::list js;
+        for (const Joint& j : a.chain().joints()) {
+          nb::dict jd;
+          jd["type"] = j.type == JointType::kRevolute ? "revolute" : "prismatic";
+          jd["axis"] = to_list(j.axis);
+          jd["origin"] = Eigen::Matrix4d(j.origin.matrix());
+          jd["lower"] = j.lower;
+          jd["upper"] = j.upper;
+          js.append(jd);
+        }
+        d["joints"] = js;
+        d["handle"] = Eigen::Matrix4d(a.chain().handle().matrix());
+        d["base"] = Eigen::Matrix4d(a.chain().base().matrix());
+        d["length_scale"] = a.length_scale();
+        return d;
+      });
+
+  // --- devices
+  nb::class_<Device> dev(m, "Device", "A haptic device: kinematics, actuation and limits.");
+  bind_kinematics(dev);
+  dev.def(
+         "__init__",
+         [](Device* self, nb::handle joints, nb::handle actuated, nb::handle handle,
+            nb::handle base, nb::handle torque_limit, double max_force, double max_torque,
+            double stiffness, double damping, const std::string& name) {
+           std::vector<Joint> js = to_joints(joints);
+           DeviceLimits L;
+           for (nb::handle h : actuated) L.actuated.push_back(nb::cast<bool>(h));
+           if (!torque_limit.is_none()) {
+             const Eigen::VectorXd t =
+                 to_vector("torque_limit", torque_limit, static_cast<long>(js.size()));
+             L.torque_limit.assign(t.data(), t.data() + t.size());
+           }
+           L.max_force = max_force;
+           L.max_torque = max_torque;
+           L.stiffness = stiffness;
+           L.damping = damping;
+           const Pose H = handle.is_none() ? Pose::Identity() : to_pose("handle", handle);
+           const Pose B = base.is_none() ? Pose::Identity() : to_pose("base", base);
+           new (self) Device(name, KinematicChain(B, js, H), L);
+         },
+         "joints"_a, "actuated"_a, "handle"_a = nb::none(), "base"_a = nb::none(),
+         "torque_limit"_a = nb::none(), "max_force"_a = kInf, "max_torque"_a = kInf,
+         "stiffness"_a = 500.0, "damping"_a = 1.0, "name"_a = "SerialDevice",
+         "A serial-chain device with any actuation mask. joints: sequence of Joint; actuated: "
+         "one bool per joint; torque_limit (dof,) [N·m or N]; max_force [N]; max_torque [N·m]; "
+         "stiffness [N/m] and damping [N·s/m]: the default translational gains.")
+      .def_prop_ro("name", &Device::name)
+      .def_prop_ro("actuated",
+                   [](const Device& d) {
+                     Eigen::Matrix<bool, Eigen::Dynamic, 1> a(d.dof());
+                     for (int i = 0; i < d.dof(); ++i) a[i] = d.actuated(i);
+                     return a;
+                   },
+                   "Actuation mask (dof,) of bool.")
+      .def_prop_ro("torque_limit", [](const Device& d) { return Eigen::VectorXd(d.torque_limit()); },
+                   "Joint torque limits (dof,) [N·m or N]; 0 for passive joints.")
+      .def_prop_ro("max_force", &Device::max_force, "[N]")
+      .def_prop_ro("max_torque", &Device::max_torque, "[N·m]")
+      .def_prop_ro("stiffness", &Device::stiffness, "Default translational Kp [N/m].")
+      .def_prop_ro("damping", &Device::damping, "Default translational Kv [N·s/m].")
+      .def_prop_ro("joints", [](const Device& self) { return self.chain().joints(); },
+                   "The joints of the underlying chain (in chain coordinates).");
+
+  nb::class_<PhantomOmni, Device>(
+      m, "PhantomOmni",
+      "PHANTOM Omni / Geomagic Touch: waist, shoulder, absolute elbow (HD_CURRENT_JOINT_ANGLES) "
+      "actuated; gimbal yaw, pitch, roll passive, meeting at the handle origin. OpenHaptics "
+      "axes in metres. See docs/devices.md for the gimbal zero and offsets.")
+      .def(
+          "__init__",
+          [](PhantomOmni* self, double l1, double l2, double max_force, nb::handle motor_limit,
+             nb::handle gimbal_offset, nb::handle gimbal_sign, double stiffness,
+             double damping) {
+            PhantomOmniParams p;
+            p.l1 = l1;
+            p.l2 = l2;
+            p.max_force = max_force;
+            const Eigen::Vector3d tl = to_vec3("motor_torque_limit", motor_limit);
+            const Eigen::Vector3d go = to_vec3("gimbal_offset", gimbal_offset);
+            const Eigen::Vector3d gs = to_vec3("gimbal_sign", gimbal_sign);
+            for (int i = 0; i < 3; ++i) {
+              p.motor_torque_limit[i] = tl[i];
+              p.gimbal_offset[i] = go[i];
+              p.gimbal_sign[i] = gs[i];
+            }
+            p.stiffness = stiffness;
+            p.damping = damping;
+            new (self) PhantomOmni(p);
+          },
+          "l1"_a = PhantomOmniParams().l1, "l2"_a = PhantomOmniParams().l2,
+          "max_force"_a = PhantomOmniParams().max_force,
+          "motor_torque_limit"_a = nb::make_tuple(0.44, 0.44, 0.44),
+          "gimbal_offset"_a = nb::make_tuple(0.0, 0.0, 0.0),
+          "gimbal_sign"_a = nb::make_tuple(1.0, 1.0, 1.0),
+          "stiffness"_a = PhantomOmniParams().stiffness, "damping"_a = PhantomOmniParams().damping)
+      .def_prop_ro("l1", [](const PhantomOmni& d) { return d.params().l1; }, "[m]")
+      .def_prop_ro("l2", [](const PhantomOmni& d) { return d.params().l2; }, "[m]")
+      .def("to_dict", [](const PhantomOmni& d) {
+        nb::dict out;
+        out["type"] = "PhantomOmni";
+        out["l1"] = d.params().l1;
+        out["l2"] = d.params().l2;
+        out["max_force"] = d.params().max_force;
+        out["motor_torque_limit"] = Eigen::Vector3d(d.params().motor_torque_limit.data());
+        out["gimbal_offset"] = Eigen::Vector3d(d.params().gimbal_offset.data());
+        out["gimbal_sign"] = Eigen::Vector3d(d.params().gimbal_sign.data());
+        out["stiffness"] = d.params().stiffness;
+        out["damping"] = d.params().damping;
+        return out;
+      });
+
+  nb::class_<Planar3R, Device>(
+      m, "Planar3R",
+      "The paper's Fig. 8 robot: three revolute joints about the base z axis; the distal "
+      "joint un-powered; the handle origin on it, the stylus along angle q0 + q1 + q2.")
+      .def(
+          "__init__",
+          [](Planar3R* self, double link1, double link2, nb::handle base, double torque_limit,
+             double max_force) {
+            const Pose B = base.is_none() ? Pose::Identity() : to_pose("base", base);
+            new (self) Planar3R(link1, link2, B, torque_limit, max_force);
+          },
+          "link1"_a = 0.2, "link2"_a = 0.2, "base"_a = nb::none(), "torque_limit"_a = 1.0,
+          "max_force"_a = 5.0, "link1, link2 [m]; base (4, 4); torque_limit [N·m]; max_force [N].")
+      .def_prop_ro("link1", &Planar3R::link1)
+      .def_prop_ro("link2", &Planar3R::link2)
+      .def("to_dict", [](const Planar3R& d) {
+        nb::dict out;
+        out["type"] = "Planar3R";
+        out["link1"] = d.link1();
+        out["link2"] = d.link2();
+        out["torque_limit"] = d.torque_limit()[0];
+        out["max_force"] = d.max_force();
+        return out;
+      });
+
+  // --- placement
+  nb::class_<PlacementResult>(m, "TrackResult", "Result of track().")
+      .def_prop_ro("theta", [](const PlacementResult& r) { return Eigen::VectorXd(r.theta); },
+                   "Mechanism joint values (dof,).")
+      .def_ro("iterations", &PlacementResult::iterations)
+      .def_ro("residual", &PlacementResult::residual, "sqrt(e^T W e) at theta")
+      .def_ro("converged", &PlacementResult::converged)
+      .def("__repr__", [](const PlacementResult& r) {
+        std::ostringstream os;
+        os << "TrackResult(theta=" << format_vector(r.theta) << ", iterations=" << r.iterations
+           << ", residual=" << r.residual << ", converged=" << (r.converged ? "True" : "False")
+           << ")";
+        return os.str();
+      });
+
+  m.def(
+      "track",
+      [](const Mechanism& mech, nb::handle target, nb::handle theta0, nb::handle weights,
+         int max_iterations) {
+        const Pose T = to_pose("target_pose", target);
+        const JointVector th0 =
+            theta0.is_none() ? mech.home() : joint_values("theta0", theta0, mech.dof());
+        require_finite("theta0", th0);
+        Vector6 W;
+        if (weights.is_none()) {
+          const double L = mech.length_scale();
+          W << 1, 1, 1, L * L, L * L, L * L;
+        } else {
+          W = to_vec6("weights", weights);
+          require_non_negative("weights", W);
+        }
+        if (max_iterations < 1) {
+          throw nb::value_error(("max_iterations: expected >= 1, got " +
+                                 std::to_string(max_iterations)).c_str());
+        }
+        TrackOptions opts;
+        opts.max_iterations = max_iterations;
+        PlacementResult out;
+        const TrackResult r = track(mech, T, th0, W, opts, out.theta);
+        out.iterations = r.iterations;
+        out.residual = r.residual;
+        out.converged = r.converged;
+        return out;
+      },
+      "mechanism"_a, "target_pose"_a, "theta0"_a = nb::none(), "weights"_a = nb::none(),
+      "max_iterations"_a = 20,
+      "Weighted Gauss-Newton placement (eqs. 18-20): theta minimising e^T diag(W) e with "
+      "e = pose_error(target_pose, mechanism.forward(theta)); theta0 (dof,) defaults to the "
+      "mechanism's home, weights (6,) to [1 1 1 L^2 L^2 L^2]. Returns .theta, .iterations, "
+      ".residual, .converged.");
+
+  // --- controller
+  nb::class_<CycleOutput>(m, "CycleOutput", "Everything one controller cycle reports.")
+      .def_prop_ro("torque", [](const CycleOutput& o) { return Eigen::VectorXd(o.torque); },
+                   "Joint torques (n,) [N·m or N]; exactly 0 on passive joints.")
+      .def_prop_ro("wrench", [](const CycleOutput& o) { return Eigen::VectorXd(o.wrench); },
+                   "Wrench applied at the handle (6,) [N; N·m], after safety.")
+      .def_prop_ro("wrench_null", [](const CycleOutput& o) { return Eigen::VectorXd(o.wrench_null); },
+                   "Null-space part N(W_A)(Kp e + Kv e_dot) (6,), before safety.")
+      .def_prop_ro("wrench_range", [](const CycleOutput& o) { return Eigen::VectorXd(o.wrench_range); },
+                   "Range-space part P(W_A)(Kp e* + Kv e*_dot) (6,), before safety.")
+      .def_prop_ro("wrench_unrendered",
+                   [](const CycleOutput& o) { return Eigen::VectorXd(o.wrench_unrendered); },
+                   "Part of the commanded wrench the device cannot apply (6,).")
+      .def_prop_ro("theta", [](const CycleOutput& o) { return Eigen::VectorXd(o.theta); },
+                   "Nearest placement (m,) (W_e).")
+      .def_prop_ro("theta_star", [](const CycleOutput& o) { return Eigen::VectorXd(o.theta_star); },
+                   "Un-powered placement (m,) (W_e*).")
+      .def_prop_ro("error", [](const CycleOutput& o) { return Eigen::VectorXd(o.error); },
+                   "e = X_V - X_R (6,) [m; rad].")
+      .def_prop_ro("error_dot", [](const CycleOutput& o) { return Eigen::VectorXd(o.error_dot); })
+      .def_prop_ro("error_star", [](const CycleOutput& o) { return Eigen::VectorXd(o.error_star); })
+      .def_prop_ro("error_star_dot",
+                   [](const CycleOutput& o) { return Eigen::VectorXd(o.error_star_dot); })
+      .def_prop_ro("handle_pose",
+                   [](const CycleOutput& o) { return Eigen::Matrix4d(o.handle_pose.matrix()); })
+      .def_prop_ro("mechanism_pose",
+                   [](const CycleOutput& o) { return Eigen::Matrix4d(o.mechanism_pose.matrix()); })
+      .def_prop_ro("mechanism_pose_star", [](const CycleOutput& o) {
+        return Eigen::Matrix4d(o.mechanism_pose_star.matrix());
+      })
+      .def_ro("iterations", &CycleOutput::iterations)
+      .def_ro("iterations_star", &CycleOutput::iterations_star)
+      .def_ro("residual", &CycleOutput::residual)
+      .def_ro("residual_star", &CycleOutput::residual_star)
+      .def_ro("ramp", &CycleOutput::ramp, "Ramp-in factor applied, in [0, 1].")
+      .def_ro("limit_scale", &CycleOutput::limit_scale, "Factor applied by the force/torque limits.")
+      .def_ro("status", &CycleOutput::status, "Status bits (virtmech.status).")
+      .def_ro("computation_time_us", &CycleOutput::computation_time_us, "[µs]")
+      .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); })
+      .def_prop_ro("fault", [](const CycleOutput& o) { return (o.status & status::kFaultMask) != 0; });
+
+  nb::class_<Controller>(m, "Controller",
+                         "The virtual-mechanism controller: one step() per servo cycle.")
+      .def(
+          "__init__",
+          [](Controller* self, std::shared_ptr<Device> device, std::shared_ptr<Mechanism> mechanism,
+             nb::handle kp, nb::handle kv, nb::handle w_a, nb::handle w_e, nb::handle w_e_star,
+             double length_scale, const std::string& law, const std::string& error_velocity,
+             double period_s, double ramp_time_s, double watchdog_s, double max_force,
+             double max_torque, int max_iterations, int max_iterations_initial,
+             double secondary_weight) {
+            ControllerSettings s;
+            if (!kp.is_none()) s.kp = to_vec6("kp", kp);
+            if (!kv.is_none()) s.kv = to_vec6("kv", kv);
+            if (!w_a.is_none()) s.w_a = to_vec6("w_a", w_a);
+            if (!w_e.is_none()) s.w_e = to_vec6("w_e", w_e);
+            if (!w_e_star.is_none()) s.w_e_star = to_vec6("w_e_star", w_e_star);
+            s.length_scale = length_scale;
+            s.law = law_from(law);
+            s.error_velocity = error_velocity_from(error_velocity);
+            s.period_s = period_s;
+            s.ramp_time_s = ramp_time_s;
+            s.watchdog_s = watchdog_s;
+            s.max_force = max_force;
+            s.max_torque = max_torque;
+            s.max_iterations = max_iterations;
+            s.max_iterations_initial = max_iterations_initial;
+            s.secondary_weight = secondary_weight;
+            new (self) Controller(std::move(device), std::move(mechanism), s);
+          },
+          "device"_a, "mechanism"_a, nb::kw_only(), "kp"_a = nb::none(), "kv"_a = nb::none(),
+          "w_a"_a = nb::none(), "w_e"_a = nb::none(), "w_e_star"_a = nb::none(),
+          "length_scale"_a = 0.0, "law"_a = "auto", "error_velocity"_a = "relative",
+          "period_s"_a = 1e-3, "ramp_time_s"_a = ControllerSettings().ramp_time_s,
+          "watchdog_s"_a = 0.0, "max_force"_a = 0.0, "max_torque"_a = 0.0,
+          "max_iterations"_a = ControllerSettings().max_iterations,
+          "max_iterations_initial"_a = ControllerSettings().max_iterations_initial,
+          "secondary_weight"_a = ControllerSettings().secondary_weight,
+          "Controller(device, mechanism, **settings). Gains and weights are 6-vectors "
+          "[x y z rx ry rz]; unset ones take the defaults of docs/theory.md (derived from the "
+          "device's actuation and the length scale). law: 'auto' | 'null_space' (eq. 11) | "
+          "'under_actuated' (eq. 26).")
+      .def(
+          "step",
+          [](Controller& self, nb::handle q, nb::handle dq, double t) {
+            const int n = self.device().dof();
+            const JointVector qv = joint_values("q", q, n);
+            const JointVector dqv = joint_values("dq", dq, n);
+            CycleOutput out;
+            self.step(qv.data(), dqv.data(), out, t);
+            return out;
+          },
+          "q"_a, "dq"_a, "t"_a = std::numeric_limits<double>::quiet_NaN(),
+          "One servo cycle: device joint positions q (n,) and velocities dq (n,) in; returns a "
+          "CycleOutput. t: the cycle's time stamp [s] for the watchdog (optional). Non-finite "
+          "inputs give zero torque and a fault status, never an exception.")
+      .def("reset", &Controller::reset, "Restart: placements from home, ramp-in from zero.")
+      .def_prop_ro("device", [](const Controller& c) { return std::const_pointer_cast<Device>(c.device_ptr()); })
+      .def_prop_ro("mechanism", [](const Controller& c) { return std::const_pointer_cast<Mechanism>(c.mechanism_ptr()); })
+      .def_prop_ro("model", [](const Controller& c) { return model_dict(c.model()); },
+                   "The resolved settings (every default filled in).")
+      .def_prop_ro("last", [](const Controller& c) { return c.last(); }, "The last cycle's output.");
+}
