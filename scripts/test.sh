@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Sets up everything and runs every test: the C++ core with GoogleTest (CTest), the
+# installed CMake package through a downstream find_package(virtmech) project, the C and
+# C++ examples, and the Python suite (pytest).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh test
+.venv/bin/python -m pip install -q "cmeel-eigen>=3.4"  # Eigen for the stand-alone CMake build
+
+generator=()
+command -v ninja >/dev/null 2>&1 && generator=(-G Ninja)
+jobs="$(nproc 2>/dev/null || echo 2)"
+
+echo "== C++: build and GoogleTest"
+cmake -S . -B build/cpp "${generator[@]}" -DCMAKE_BUILD_TYPE=Release \
+  -DVIRTMECH_BUILD_TESTS=ON -DVIRTMECH_BUILD_EXAMPLES=ON \
+  -DPython_EXECUTABLE="$PWD/.venv/bin/python" -DCMAKE_INSTALL_PREFIX="$PWD/build/prefix" >/dev/null
+cmake --build build/cpp -j "$jobs"
+ctest --test-dir build/cpp --output-on-failure -j "$jobs"
+
+echo "== C++: install, then find_package(virtmech) from a downstream project"
+cmake --install build/cpp >/dev/null
+eigen_prefix="$(.venv/bin/python -c 'import os, sysconfig; print(os.path.join(sysconfig.get_paths()["purelib"], "cmeel.prefix"))')"
+cmake -S tests/cmake_consumer -B build/consumer "${generator[@]}" \
+  -DCMAKE_PREFIX_PATH="$PWD/build/prefix;$eigen_prefix" >/dev/null
+cmake --build build/consumer -j "$jobs" >/dev/null
+build/consumer/consumer
+
+echo "== examples"
+build/cpp/examples/01_omni_loop_c | tail -n 3
+build/cpp/examples/01_omni_loop_cpp | tail -n 3
+.venv/bin/python examples/python/01_omni_loop.py | tail -n 3
+
+echo "== Python: pytest"
+set +e
+.venv/bin/python -m pytest
+rc=$?
+set -e
+if [ "$rc" -eq 5 ]; then
+  echo "pytest collected no tests: the suite is misconfigured" >&2
+  exit 1
+fi
+exit "$rc"
