@@ -18,5 +18,7 @@ for k in range(1001):
     out = controller.step(q, dq, t)
     if k % 100 == 0:
         tau = out.torque
-        print(f"{t:8.3f} {tau[0]:10.5f} {tau[1]:10.5f} {tau[2]:10.5f} "
-              f"{np.linalg.norm(out.wrench[:3]):8.4f}  {','.join(out.status_names) or 'ok'}")
+        print(
+            f"{t:8.3f} {tau[0]:10.5f} {tau[1]:10.5f} {tau[2]:10.5f} "
+            f"{np.linalg.norm(out.wrench[:3]):8.4f}  {','.join(out.status_names) or 'ok'}"
+        )

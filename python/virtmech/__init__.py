@@ -31,7 +31,6 @@ from ._core import (
     range_filter,
     so3_exp,
     so3_log,
-
     track,
 )
 

@@ -34,8 +34,17 @@ def six_dof_arm() -> vm.Device:
     handle = np.eye(4)
     handle[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]  # stylus along +x
     handle[:3, 3] = [0.05, 0, 0]
-    return vm.Device(joints, [True] * 6, handle=handle, torque_limit=[20.0] * 6,
-                     max_force=40.0, max_torque=4.0, stiffness=800.0, damping=2.0, name="Arm6R")
+    return vm.Device(
+        joints,
+        [True] * 6,
+        handle=handle,
+        torque_limit=[20.0] * 6,
+        max_force=40.0,
+        max_torque=4.0,
+        stiffness=800.0,
+        damping=2.0,
+        name="Arm6R",
+    )
 
 
 @pytest.fixture

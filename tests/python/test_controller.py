@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_within, six_dof_arm
 from scipy.optimize import least_squares
 
 import virtmech as vm
+from conftest import random_within, six_dof_arm
 
 
 def planar3r_ik(l1, l2, x, y, phi):
@@ -27,8 +27,13 @@ def ik(device, T, q0, steps=20):
         Ts = np.eye(4)
         Ts[:3, 3] = T0[:3, 3] + s * e0[:3]
         Ts[:3, :3] = vm.so3_exp(s * e0[3:]) @ T0[:3, :3]
-        q = least_squares(lambda x, Ts=Ts: vm.pose_error(Ts, device.forward(x)), q,
-                          xtol=1e-15, ftol=1e-15, gtol=1e-15).x
+        q = least_squares(
+            lambda x, Ts=Ts: vm.pose_error(Ts, device.forward(x)),
+            q,
+            xtol=1e-15,
+            ftol=1e-15,
+            gtol=1e-15,
+        ).x
     assert np.linalg.norm(vm.pose_error(T, device.forward(q))) < 1e-10
     return q
 
@@ -39,10 +44,12 @@ def omni():
 
 
 def test_passive_joint_torques_are_exactly_zero(omni, rng):
-    mechanisms = [vm.Probe([0, -0.05, 0], [0, 1, 0], 0.1),
-                  vm.PlanarArm([0, 0, -0.1], [0, 0, 1], 0.05),
-                  vm.PointPivot([0, -0.05, -0.1], [0, 1, 0], 0.1),
-                  vm.LineGuide([0, -0.05, -0.05], [1, 0, 0], 0.1, normal=[0, 1, 0])]
+    mechanisms = [
+        vm.Probe([0, -0.05, 0], [0, 1, 0], 0.1),
+        vm.PlanarArm([0, 0, -0.1], [0, 0, 1], 0.05),
+        vm.PointPivot([0, -0.05, -0.1], [0, 1, 0], 0.1),
+        vm.LineGuide([0, -0.05, -0.05], [1, 0, 0], 0.1, normal=[0, 1, 0]),
+    ]
     for m in mechanisms:
         c = vm.Controller(omni, m, ramp_time_s=0.0)
         for _ in range(200):
@@ -77,8 +84,7 @@ class PlanarScene:
 @pytest.mark.parametrize("alpha", [-0.8, 0.1, 1.0])
 @pytest.mark.parametrize("delta", [-0.4, 0.25])
 @pytest.mark.parametrize("radius_offset", [0.0, 0.01, -0.01])
-def test_under_actuated_wrench_pulls_toward_mechanism_at_handle_angle(alpha, delta,
-                                                                      radius_offset):
+def test_under_actuated_wrench_pulls_toward_mechanism_at_handle_angle(alpha, delta, radius_offset):
     """Section V: W_e* on the un-powered joint places the mechanism at the handle's own
     angle; the wrench pulls the handle toward that point of the circle."""
     s = PlanarScene()
@@ -189,8 +195,9 @@ def test_outputs_are_complete_and_consistent(omni):
     out = c.step(q, np.zeros(6))
     np.testing.assert_allclose(out.handle_pose, omni.forward(q), atol=1e-15)
     np.testing.assert_allclose(out.mechanism_pose, arm.forward(out.theta), atol=1e-15)
-    np.testing.assert_allclose(out.error, vm.pose_error(out.mechanism_pose, out.handle_pose),
-                               atol=1e-15)
+    np.testing.assert_allclose(
+        out.error, vm.pose_error(out.mechanism_pose, out.handle_pose), atol=1e-15
+    )
     commanded = out.wrench_null + out.wrench_range
     applied = (commanded - out.wrench_unrendered) * out.limit_scale * out.ramp
     np.testing.assert_allclose(out.wrench, applied, atol=1e-12)
@@ -211,8 +218,11 @@ def test_bad_arguments_name_parameter_value_and_expectation(omni):
         (lambda: vm.Controller(omni, arm, kv=[1, 1, 1, 1, 1, -2]), ValueError, r"kv.*>= 0.*-2"),
         (lambda: vm.Controller(omni, arm, period_s=0.0), ValueError, r"period_s.*> 0"),
         (lambda: vm.Controller(omni, arm, law="pd"), ValueError, r"law.*'pd'"),
-        (lambda: vm.Controller(omni, arm).step(np.zeros(5), np.zeros(6)), ValueError,
-         r"q.*\(6,\).*\(5,\)"),
+        (
+            lambda: vm.Controller(omni, arm).step(np.zeros(5), np.zeros(6)),
+            ValueError,
+            r"q.*\(6,\).*\(5,\)",
+        ),
         (lambda: vm.Planar3R(link1=-0.2), ValueError, r"link1.*-0.2"),
         (lambda: vm.Joint("helical"), ValueError, r"type.*helical"),
         (lambda: vm.PlanarArm("abc", [0, 0, 1], 0.1), TypeError, r"pivot"),

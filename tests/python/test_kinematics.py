@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import numeric_jacobian, random_within, six_dof_arm
 
 import virtmech as vm
+from conftest import numeric_jacobian, random_within, six_dof_arm
 
 n = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
 
@@ -16,14 +16,19 @@ MECHANISMS = {
     "PointPivot": lambda: vm.PointPivot([0.0, 0.0, 0.0], [0, 1, 0], 0.08),
     "LineGuide": lambda: vm.LineGuide([0.02, 0, 0], [1, 0, 0], 0.09, normal=[0, 1, 0]),
     "SerialChain": lambda: vm.SerialChain(
-        [vm.Joint("prismatic", [1, 1, 0]), vm.Joint("revolute", [0, 0, 1], [0.1, 0, 0]),
-         vm.Joint("revolute", [0, 1, 0], [0, 0.05, 0])],
-        handle=np.array([[1, 0, 0, 0.05], [0, 1, 0, 0.02], [0, 0, 1, 0.01], [0, 0, 0, 1.0]])),
+        [
+            vm.Joint("prismatic", [1, 1, 0]),
+            vm.Joint("revolute", [0, 0, 1], [0.1, 0, 0]),
+            vm.Joint("revolute", [0, 1, 0], [0, 0.05, 0]),
+        ],
+        handle=np.array([[1, 0, 0, 0.05], [0, 1, 0, 0.02], [0, 0, 1, 0.01], [0, 0, 0, 1.0]]),
+    ),
 }
 DEVICES = {
     "PhantomOmni": vm.PhantomOmni,
-    "PhantomOmniOffsets": lambda: vm.PhantomOmni(gimbal_offset=[0.3, -0.2, 1.0],
-                                                 gimbal_sign=[-1, 1, -1]),
+    "PhantomOmniOffsets": lambda: vm.PhantomOmni(
+        gimbal_offset=[0.3, -0.2, 1.0], gimbal_sign=[-1, 1, -1]
+    ),
     "Planar3R": lambda: vm.Planar3R(0.2, 0.15),
     "Arm6R": six_dof_arm,
 }
@@ -86,8 +91,10 @@ def test_omni_actuation_and_limits():
 
 
 def test_gimbal_offset_and_sign_map_driver_angles():
-    plain, mapped = vm.PhantomOmni(), vm.PhantomOmni(gimbal_offset=[0.3, -0.2, 1.0],
-                                                     gimbal_sign=[-1, 1, -1])
+    plain, mapped = (
+        vm.PhantomOmni(),
+        vm.PhantomOmni(gimbal_offset=[0.3, -0.2, 1.0], gimbal_sign=[-1, 1, -1]),
+    )
     q = np.array([0.1, 0.4, 0.2, 0.25, 0.5, -0.3])
     driver = q.copy()
     driver[3:] = np.array([-1, 1, -1]) * q[3:] + [0.3, -0.2, 1.0]

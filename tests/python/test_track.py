@@ -14,8 +14,13 @@ MECHANISMS = {
     "PointPivot": lambda: vm.PointPivot([0.0, 0.0, 0.0], [0, 0, 1], 0.1),
     "LineGuide": lambda: vm.LineGuide([0.0, 0.0, 0.0], [1, 0, 0], 0.1, normal=[0, 0, 1]),
     "SerialChain": lambda: vm.SerialChain(
-        [vm.Joint("revolute", [0, 0, 1]), vm.Joint("revolute", [0, 1, 0], [0.2, 0, 0]),
-         vm.Joint("prismatic", [1, 0, 0], [0.1, 0, 0])], length_scale=0.1),
+        [
+            vm.Joint("revolute", [0, 0, 1]),
+            vm.Joint("revolute", [0, 1, 0], [0.2, 0, 0]),
+            vm.Joint("prismatic", [1, 0, 0], [0.1, 0, 0]),
+        ],
+        length_scale=0.1,
+    ),
 }
 
 
@@ -82,8 +87,10 @@ def test_planar_anisotropic_weights_match_scipy():
         def residual(th, T=T, W=W):
             return np.sqrt(W) * vm.pose_error(T, m.forward(th))
 
-        best = min((least_squares(residual, [s], method="lm") for s in np.linspace(-3, 3, 13)),
-                   key=lambda s: s.cost)
+        best = min(
+            (least_squares(residual, [s], method="lm") for s in np.linspace(-3, 3, 13)),
+            key=lambda s: s.cost,
+        )
         assert r.residual**2 <= 2 * best.cost * (1 + 1e-8) + 1e-18
 
 
