@@ -137,3 +137,43 @@ TEST(CApi, CreateReportsTheBadField) {
   EXPECT_EQ(c, nullptr);
   EXPECT_NE(std::string(err).find("length"), std::string::npos);
 }
+
+TEST(CApi, DiagnosticsMatchTheCppCycle) {
+  vm_device_desc dev;
+  vm_device_desc_init(&dev, VM_DEVICE_PHANTOM_OMNI);
+  vm_mechanism_desc mech;
+  vm_mechanism_desc_init(&mech, VM_MECHANISM_PLANAR_ARM);
+  mech.point[2] = -0.1;
+  mech.length = 0.05;
+  vm_settings settings;
+  vm_settings_init(&settings);
+  settings.ramp_time_s = 0.0;
+  vm_controller* c = nullptr;
+  ASSERT_EQ(vm_controller_create(&dev, &mech, &settings, &c, nullptr, 0), VM_OK);
+  ControllerSettings cs;
+  cs.ramp_time_s = 0.0;
+  Controller ref(std::make_shared<PhantomOmni>(),
+                 std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0, -0.1), Eigen::Vector3d::UnitZ(),
+                                             0.05, Eigen::Vector3d::UnitX()),
+                 cs);
+  JointVector q(6), dq(6);
+  CycleOutput out;
+  vm_diagnostics d;
+  double tau[6];
+  for (int k = 0; k < 200; ++k) {
+    joint_state(k * 10, q, dq);
+    const std::uint32_t s = vm_controller_step(c, q.data(), dq.data(), NAN, tau);
+    ref.step(q.data(), dq.data(), out);
+    vm_controller_diagnostics(c, &d);
+    ASSERT_EQ(s, out.status);
+    for (int i = 0; i < 6; ++i) {
+      ASSERT_EQ(tau[i], out.torque[i]);
+      ASSERT_EQ(d.wrench[i], out.wrench[i]);
+      ASSERT_EQ(d.error[i], out.error[i]);
+    }
+    ASSERT_EQ(d.theta[0], out.theta[0]);
+    ASSERT_EQ(d.mechanism_dof, 1);
+    ASSERT_EQ(d.handle_pose[3], out.handle_pose.translation().x());  // row-major
+  }
+  vm_controller_destroy(c);
+}

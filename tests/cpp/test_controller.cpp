@@ -276,3 +276,18 @@ TEST(Controller, BadSettingsNameTheField) {
     EXPECT_NE(std::string(e.what()).find("-1"), std::string::npos);
   }
 }
+
+TEST(Controller, WrongSizedInputIsAFaultNotACrash) {
+  auto omni = std::make_shared<PhantomOmni>();
+  auto arm = std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0, -0.05), Eigen::Vector3d::UnitZ(),
+                                         0.05, Eigen::Vector3d::UnitX());
+  Controller c(omni, arm, no_ramp());
+  CycleOutput out;
+  const Eigen::VectorXd q5 = Eigen::VectorXd::Constant(5, 0.3), dq6 = Eigen::VectorXd::Zero(6);
+  const std::uint32_t s = c.step(q5, dq6, out);
+  EXPECT_TRUE(s & status::kFaultBadSize);
+  EXPECT_EQ(out.torque.size(), 6);
+  EXPECT_EQ(out.torque.cwiseAbs().maxCoeff(), 0.0);
+  const Eigen::VectorXd q6 = Eigen::VectorXd::Constant(6, 0.3);
+  EXPECT_EQ(c.step(q6, dq6, out) & status::kFaultMask, 0u);
+}
