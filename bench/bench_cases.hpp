@@ -1,0 +1,98 @@
+// The four benchmark cases of the cycle (issue 4) and the joint trajectory that drives them.
+// python/virtmech/bench.py builds the same cases and the same trajectory for its NumPy
+// baseline and its Python-call timing: keep the two in step.
+#pragma once
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "test_support.hpp"  // the 6R arm of the C++ tests (tests/cpp)
+#include "virtmech/virtmech.hpp"
+
+namespace vmbench {
+
+using namespace virtmech;
+
+/// A controller and the joint trajectory of its device:
+/// q_i(t) = center_i + amplitude_i sin(w_i t + i), w_i = 1 + 0.37 i [rad/s].
+struct BenchCase {
+  std::string name;
+  std::unique_ptr<Controller> controller;
+  JointVector center, amplitude;
+};
+
+/// Device joint state at cycle k (t = k * period_s).
+inline void joint_state(const BenchCase& c, long k, double period_s, JointVector& q,
+                        JointVector& dq) noexcept {
+  const double t = static_cast<double>(k) * period_s;
+  for (Eigen::Index i = 0; i < c.center.size(); ++i) {
+    const double w = 1.0 + 0.37 * static_cast<double>(i);
+    q[i] = c.center[i] + c.amplitude[i] * std::sin(w * t + static_cast<double>(i));
+    dq[i] = c.amplitude[i] * w * std::cos(w * t + static_cast<double>(i));
+  }
+}
+
+/// A 5-joint serial mechanism (PPRRR, axes x y z x y), as tests/cpp/test_allocation.cpp.
+inline std::shared_ptr<Mechanism> serial5() {
+  std::vector<Joint> j(5);
+  for (int i = 0; i < 5; ++i) {
+    j[static_cast<size_t>(i)].type = i < 2 ? JointType::kPrismatic : JointType::kRevolute;
+    j[static_cast<size_t>(i)].axis = Eigen::Vector3d::Unit(i % 3);
+  }
+  Pose handle = Pose::Identity();
+  handle.translation() = Eigen::Vector3d(0.3, 0, 0.2);
+  return std::make_shared<SerialChain>(j, handle, Pose::Identity(), 0.1);
+}
+
+inline JointVector values(std::initializer_list<double> v) {
+  JointVector out(static_cast<Eigen::Index>(v.size()));
+  Eigen::Index i = 0;
+  for (double x : v) out[i++] = x;
+  return out;
+}
+
+/// The cases of issue 4 (and one stress case), in the order the reports list them.
+inline std::vector<BenchCase> make_cases() {
+  std::vector<BenchCase> cases;
+  auto omni = std::make_shared<PhantomOmni>();
+  // waist, shoulder, absolute elbow, gimbal yaw, pitch, roll: the hand wanders over the
+  // middle of the workspace and turns the stylus
+  const JointVector omni_center = values({0.0, 0.5, 0.3, 0.0, 0.8, 0.0});
+  const JointVector omni_amplitude = values({0.3, 0.2, 0.2, 0.4, 0.3, 0.5});
+  // the probe's tip on a table 1 cm above the handle's zero height: the handle stays 3 to
+  // 9 cm above the table, within the 10 cm probe's reach
+  cases.push_back({"omni+probe",
+                   std::make_unique<Controller>(
+                       omni, std::make_shared<Probe>(Eigen::Vector3d(0.0, 0.01, 0.0),
+                                                     Eigen::Vector3d::UnitY(), 0.1,
+                                                     Eigen::Vector3d::Zero())),
+                   omni_center, omni_amplitude});
+  cases.push_back({"omni+planar_arm",
+                   std::make_unique<Controller>(
+                       omni, std::make_shared<PlanarArm>(Eigen::Vector3d(0.0, 0.0, -0.05),
+                                                         Eigen::Vector3d::UnitZ(), 0.05,
+                                                         Eigen::Vector3d::UnitX())),
+                   omni_center, omni_amplitude});
+  cases.push_back({"planar3r+planar_arm",
+                   std::make_unique<Controller>(
+                       std::make_shared<Planar3R>(0.2, 0.2, Pose::Identity(), 50.0, 100.0),
+                       std::make_shared<PlanarArm>(Eigen::Vector3d(0.25, 0.0, 0.0),
+                                                   Eigen::Vector3d::UnitZ(), 0.1,
+                                                   Eigen::Vector3d::UnitX())),
+                   values({-0.5, 1.6, 0.5}), values({0.2, 0.2, 0.3})});
+  // the same with the table 3 cm below: half the time the handle is lifted beyond the
+  // probe's reach, where the placement's Gauss-Newton model is poor (a stress case)
+  cases.push_back({"omni+probe_lifted",
+                   std::make_unique<Controller>(
+                       omni, std::make_shared<Probe>(Eigen::Vector3d(0.0, -0.03, 0.0),
+                                                     Eigen::Vector3d::UnitY(), 0.1,
+                                                     Eigen::Vector3d::Zero())),
+                   omni_center, omni_amplitude});
+  cases.push_back({"arm6+serial5", std::make_unique<Controller>(vmtest::six_dof_arm(), serial5()),
+                   JointVector::Constant(6, 0.3), JointVector::Constant(6, 0.4)});
+  return cases;
+}
+
+}  // namespace vmbench
