@@ -1,0 +1,139 @@
+"""Scenarios as data: TOML files describing a device, a virtual mechanism, the controller's
+settings, the human and the intent timeline, the sensors and the duration (format:
+docs/scenarios.md). The paper's Figs. 9-12 ship as `omni-fig9` ... `planar3r-fig12`.
+
+    >>> import virtmech.scenarios as sc
+    >>> sc.names()[:2]
+    ['omni-fig10', 'omni-fig11']
+    >>> s = sc.load("omni-fig10")
+"""
+
+from __future__ import annotations
+
+import copy
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .schema import ScenarioError
+
+__all__ = ["Scenario", "ScenarioError", "load", "loads", "names", "path_of", "validate"]
+
+DATA = Path(__file__).resolve().parent / "data"
+
+
+def _toml():
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    return tomllib
+
+
+@dataclass
+class Scenario:
+    """A validated scenario: `data` holds every key with its default filled in."""
+
+    data: dict[str, Any]
+    source: str = "<string>"
+    raw: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.data["name"]
+
+    @property
+    def duration_s(self) -> float:
+        return self.data["duration_s"]
+
+    @property
+    def seed(self) -> int:
+        return self.data["seed"]
+
+    def __getitem__(self, key: str) -> Any:
+        return self.data[key]
+
+    def with_overrides(self, **changes: Any) -> Scenario:
+        """A re-validated copy with top-level keys replaced or tables merged, e.g.
+        ``s.with_overrides(duration_s=1.0, sensors={"noise_rad": 1e-4})``."""
+        raw = copy.deepcopy(self.raw)
+        for k, v in changes.items():
+            if isinstance(v, dict) and isinstance(raw.get(k), dict):
+                raw[k].update(v)
+            else:
+                raw[k] = v
+        return validate(raw, self.source)
+
+    def to_dict(self) -> dict[str, Any]:
+        return copy.deepcopy(self.data)
+
+
+def validate(raw: dict[str, Any], source: str = "<string>") -> Scenario:
+    """Checks a parsed scenario; raises ScenarioError naming the key, the value and what
+    was expected."""
+    from .format import SCENARIO
+    from .schema import check_table
+
+    try:
+        data = check_table("", raw, SCENARIO)
+    except ScenarioError as e:
+        raise ScenarioError(f"{source}: {e}") from None
+    _check_consistency(data, source)
+    return Scenario(data=data, source=source, raw=copy.deepcopy(raw))
+
+
+def _check_consistency(d: dict, source: str) -> None:
+    c, p = d["controller"], d["physics"]
+    sub = p["rate_hz"] * c["period_s"]
+    if abs(sub - round(sub)) > 1e-9 or round(sub) < 1:
+        raise ScenarioError(
+            f"{source}: physics.rate_hz: value {p['rate_hz']:g} is out of range; expected a "
+            f"whole multiple of the control rate {1.0 / c['period_s']:g} Hz"
+        )
+    for i, seg in enumerate(d["intent"]):
+        if seg["action"] == "follow" and ("theta" in seg) == ("offsets" in seg):
+            raise ScenarioError(
+                f"{source}: intent[{i}]: missing required field; expected exactly one of "
+                "'theta' (a path along the mechanism) or 'offsets' (waypoints [m])"
+            )
+    q = d["initial"].get("q")
+    if q is not None:
+        n = 6 if d["device"]["type"] == "PhantomOmni" else 3
+        if len(q) != n:
+            raise ScenarioError(
+                f"{source}: initial.q: expected {n} numbers (one per joint of "
+                f"{d['device']['type']}), got {len(q)} values"
+            )
+
+
+def loads(text: str, source: str = "<string>") -> Scenario:
+    """A scenario from TOML text."""
+    try:
+        raw = _toml().loads(text)
+    except Exception as e:  # tomllib.TOMLDecodeError
+        raise ScenarioError(f"{source}: not valid TOML: {e}") from None
+    return validate(raw, source)
+
+
+def names() -> list[str]:
+    """Names of the shipped scenarios, sorted."""
+    return sorted(p.stem for p in DATA.glob("*.toml"))
+
+
+def path_of(name: str) -> Path:
+    """The file of a shipped scenario."""
+    p = DATA / f"{name}.toml"
+    if not p.exists():
+        raise ScenarioError(f"{name}: no such shipped scenario; expected one of {', '.join(names())}")
+    return p
+
+
+def load(name_or_path: str | Path) -> Scenario:
+    """A shipped scenario by name (see names()) or a scenario file by path."""
+    p = Path(name_or_path)
+    if not p.suffix and not p.exists():
+        p = path_of(str(name_or_path))
+    if not p.exists():
+        raise ScenarioError(f"{name_or_path}: no such file or shipped scenario")
+    return loads(p.read_text(encoding="utf-8"), str(p))

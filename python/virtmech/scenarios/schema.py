@@ -1,0 +1,166 @@
+"""A small schema engine for scenario files: every error names the key (as a dotted path),
+the value found and what was expected."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+
+class ScenarioError(ValueError):
+    """A scenario file that does not match the format of docs/scenarios.md."""
+
+
+_MISSING = object()
+
+
+def _show(v: Any) -> str:
+    s = repr(v)
+    return s if len(s) <= 60 else s[:57] + "..."
+
+
+def _where(path: str) -> str:
+    return path or "(top level)"
+
+
+@dataclass
+class Field:
+    """One key: kind in {number, integer, bool, string, vector, table, tables, choice-or-vector}."""
+
+    kind: str
+    required: bool = False
+    default: Any = _MISSING
+    min: float | None = None
+    max: float | None = None
+    min_exclusive: bool = False
+    max_exclusive: bool = False
+    choices: tuple[str, ...] | None = None
+    length: int | None = None  # vectors
+    min_length: int | None = None
+    children: dict[str, Field] | None = None  # tables
+    variants: dict[str, dict[str, Field]] | None = None  # tables keyed by "type"/"action"
+    variant_key: str | None = None
+    doc: str = ""
+    element: Field | None = None  # vectors of vectors
+    extra: dict = field(default_factory=dict)
+
+    # -------------------------------------------------------------------------------
+    def _range_text(self) -> str:
+        parts = []
+        if self.min is not None:
+            parts.append(f"{'>' if self.min_exclusive else '>='} {self.min:g}")
+        if self.max is not None:
+            parts.append(f"{'<' if self.max_exclusive else '<='} {self.max:g}")
+        return " and ".join(parts)
+
+    def _check_range(self, path: str, x: float) -> None:
+        bad = False
+        if self.min is not None:
+            bad |= x <= self.min if self.min_exclusive else x < self.min
+        if self.max is not None:
+            bad |= x >= self.max if self.max_exclusive else x > self.max
+        if bad or (isinstance(x, float) and not math.isfinite(x)):
+            raise ScenarioError(
+                f"{path}: value {_show(x)} is out of range; expected a number "
+                f"{self._range_text() or 'that is finite'}"
+            )
+
+    def _number(self, path: str, v: Any) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ScenarioError(
+                f"{path}: expected a number{' ' + self._range_text() if self._range_text() else ''}, "
+                f"got {type(v).__name__} {_show(v)}"
+            )
+        self._check_range(path, float(v))
+        return float(v)
+
+    def check(self, path: str, v: Any) -> Any:
+        k = self.kind
+        if k == "number":
+            return self._number(path, v)
+        if k == "integer":
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise ScenarioError(f"{path}: expected an integer, got {type(v).__name__} {_show(v)}")
+            self._check_range(path, v)
+            return int(v)
+        if k == "bool":
+            if not isinstance(v, bool):
+                raise ScenarioError(f"{path}: expected true or false, got {type(v).__name__} {_show(v)}")
+            return v
+        if k == "string":
+            if not isinstance(v, str):
+                raise ScenarioError(f"{path}: expected a string, got {type(v).__name__} {_show(v)}")
+            if self.choices and v not in self.choices:
+                raise ScenarioError(
+                    f"{path}: value {_show(v)} is not allowed; expected one of "
+                    + ", ".join(repr(c) for c in self.choices)
+                )
+            return v
+        if k == "vector":
+            n = f"{self.length} numbers" if self.length else "a list of numbers"
+            if not isinstance(v, list):
+                raise ScenarioError(f"{path}: expected {n}, got {type(v).__name__} {_show(v)}")
+            if self.length is not None and len(v) != self.length:
+                raise ScenarioError(f"{path}: expected {n}, got {len(v)} values {_show(v)}")
+            if self.min_length is not None and len(v) < self.min_length:
+                raise ScenarioError(
+                    f"{path}: expected at least {self.min_length} values, got {len(v)} {_show(v)}"
+                )
+            if self.element is not None:
+                return [self.element.check(f"{path}[{i}]", x) for i, x in enumerate(v)]
+            return [self._number(f"{path}[{i}]", x) for i, x in enumerate(v)]
+        if k == "axis":  # a choice string or a 3-vector
+            if isinstance(v, str):
+                return Field("string", choices=self.choices).check(path, v)
+            if isinstance(v, list):
+                out = Field("vector", length=3).check(path, v)
+                if math.hypot(*out) < 1e-9:
+                    raise ScenarioError(f"{path}: value {_show(v)} is out of range; expected a non-zero vector")
+                return out
+            raise ScenarioError(
+                f"{path}: expected one of {', '.join(repr(c) for c in self.choices or ())} or 3 numbers, "
+                f"got {type(v).__name__} {_show(v)}"
+            )
+        if k == "table":
+            return check_table(path, v, self)
+        if k == "tables":
+            if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+                raise ScenarioError(f"{path}: expected an array of tables ([[{path}]]), got {_show(v)}")
+            return [check_table(f"{path}[{i}]", x, self) for i, x in enumerate(v)]
+        raise AssertionError(k)
+
+
+def check_table(path: str, v: Any, spec: Field) -> dict:
+    if not isinstance(v, dict):
+        raise ScenarioError(f"{_where(path)}: expected a table, got {type(v).__name__} {_show(v)}")
+    children = dict(spec.children or {})
+    if spec.variants is not None:
+        key = spec.variant_key
+        assert key is not None
+        kpath = f"{path}.{key}" if path else key
+        if key not in v:
+            raise ScenarioError(f"{kpath}: missing required field; expected one of "
+                                + ", ".join(repr(c) for c in spec.variants))
+        name = Field("string", choices=tuple(spec.variants)).check(kpath, v[key])
+        children[key] = Field("string", required=True, choices=tuple(spec.variants))
+        children.update(spec.variants[name])
+    out: dict = {}
+    for k in v:
+        if k not in children:
+            where = f"[{path}]" if path else "the top level"
+            raise ScenarioError(
+                f"{path + '.' if path else ''}{k}: unknown key in {where}; expected one of "
+                + ", ".join(sorted(children))
+            )
+    for k, f in children.items():
+        kpath = f"{path}.{k}" if path else k
+        if k in v:
+            out[k] = f.check(kpath, v[k])
+        elif f.required:
+            raise ScenarioError(f"{kpath}: missing required field ({f.doc or f.kind})")
+        elif f.kind == "table":
+            out[k] = check_table(kpath, {}, f) if not f.required else None
+        elif f.default is not _MISSING:
+            out[k] = f.default
+    return out

@@ -1,0 +1,36 @@
+"""Simulation of the devices and the human hand in MuJoCo (imported lazily: ``import
+virtmech`` does not import MuJoCo).
+
+Stable API (docs/simulation.md):
+
+- ``run(scenario, seed=None, progress=False) -> SimResult``: runs a scenario (a
+  ``virtmech.scenarios.Scenario``, a shipped name or a TOML path) headless.
+- ``SimResult``: ``.log`` (one row per control cycle), ``.columns``, ``.col(name)``,
+  ``.sim_time_s``, ``.wall_time_s``, ``.info``; ``virtmech.sim.output.write_run`` writes
+  ``log.csv`` and ``run.json``.
+- ``build_mjcf(device, ...)``: the MJCF model of a device.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["SimResult", "build_mjcf", "run"]
+
+
+def run(scenario: Any, seed: int | None = None, progress: bool = False):
+    from .loop import run as _run
+
+    return _run(scenario, seed=seed, progress=progress)
+
+
+def __getattr__(name: str) -> Any:
+    if name == "SimResult":
+        from .loop import SimResult
+
+        return SimResult
+    if name == "build_mjcf":
+        from .model import build_mjcf
+
+        return build_mjcf
+    raise AttributeError(name)

@@ -1,0 +1,422 @@
+"""The simulation loop: the controller at the device rate with zero-order hold on torque,
+MuJoCo physics at several kHz, modelled sensors, the human's wrench every physics step.
+
+    per control cycle k (t = k T):
+        q, dq       <- true joint state (device coordinates)
+        qm, dqm     <- sensors (quantise, noise, dropout, delay, filtered difference)
+        out         <- controller.step(qm, dqm, t)            (exactly a device callback)
+        motors      <- out.torque (+ gravity compensation), held for the whole cycle;
+                       the motors saturate at their torque limits
+        anchor      <- intent timeline (the hand's target this cycle)
+        repeat rate_hz * T times:
+            hand wrench from the impedance at the current handle pose and twist
+            mj_step
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+import virtmech as vm
+
+from .grip import finger_forces
+from .human import HandImpedance, Intent, hand_wrench
+from .model import BuiltModel, DeviceModel, HandBody, build_mjcf, compile_model
+from .sensors import Sensors, SensorSettings
+
+# ---------------------------------------------------------------------------------------
+# objects from a scenario
+
+
+def translation(p) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
+
+
+def make_device(d: dict):
+    """A vm device from a scenario's [device] table; returns (device, base pose or None)."""
+    if d["type"] == "PhantomOmni":
+        return (
+            vm.PhantomOmni(l1=d["l1"], l2=d["l2"], max_force=d["max_force"],
+                           motor_torque_limit=d["motor_torque_limit"]),
+            None,
+        )
+    base = translation(d["base_position"])
+    return (
+        vm.Planar3R(link1=d["link1"], link2=d["link2"], base=base,
+                    torque_limit=d["torque_limit"], max_force=d["max_force"]),
+        base,
+    )
+
+
+def make_mechanism(m: dict):
+    t = m["type"]
+    if t == "PlanarArm":
+        return vm.PlanarArm(m["pivot"], m["normal"], m["length"], m.get("zero_direction"))
+    if t == "PointPivot":
+        return vm.PointPivot(m["point"], m["normal"], m["length"], m.get("tangent"))
+    if t == "Probe":
+        return vm.Probe(m["plane_point"], m["plane_normal"], m["length"], m.get("tangent"))
+    if t == "LineGuide":
+        return vm.LineGuide(m["point"], m["direction"], m["length"], m.get("normal"))
+    raise ValueError(f"mechanism.type: unknown {t!r}")
+
+
+def controller_kwargs(c: dict) -> dict:
+    kw = {k: c[k] for k in ("law", "error_velocity", "period_s", "ramp_time_s", "max_force",
+                            "max_iterations")}
+    for k in ("kp", "kv", "w_a", "w_e", "w_e_star"):
+        if k in c:
+            kw[k] = np.asarray(c[k], dtype=float)
+    return kw
+
+
+def device_physics(scenario_device: dict) -> DeviceModel:
+    p = DeviceModel.for_device(scenario_device["type"])
+    for k in p.to_dict():
+        if k in scenario_device:
+            setattr(p, k, float(scenario_device[k]))
+    return p
+
+
+# ---------------------------------------------------------------------------------------
+# initial pose
+
+
+def _seeds(device) -> list[np.ndarray]:
+    if isinstance(device, vm.PhantomOmni):
+        arm = [0.0, 0.4, 0.2]
+        return [np.array(arm + g) for g in ([-1.5, 0.3, 1.5], [1.5, 0.3, -1.5], [0, 0.3, 0],
+                                            [-1.5, 0.3, -1.5], [1.5, 0.3, 1.5])] + [device.home]
+    return [np.array([0.3, 1.5, -1.0]), np.array([-0.3, -1.5, 1.0]), device.home]
+
+
+def solve_ik(device, T: np.ndarray, length_scale: float = 0.1, iterations: int = 200):
+    """Joint values (within the device's limits) whose handle pose is closest to T, by
+    damped least squares from several seeds; returns (q, residual pose error (6,))."""
+    lo, hi = np.asarray(device.lower), np.asarray(device.upper)
+    W = np.array([1, 1, 1, length_scale, length_scale, length_scale])
+    best, best_err = None, None
+    for q in _seeds(device):
+        q = np.clip(q.astype(float), lo, hi)
+        lam = 1e-3
+        for _ in range(iterations):
+            e = vm.pose_error(T, device.forward(q)) * W
+            J = device.jacobian(q) * W[:, None]
+            dq = np.linalg.solve(J.T @ J + lam * np.eye(len(q)), J.T @ e)
+            qn = np.clip(q + dq, lo, hi)
+            en = vm.pose_error(T, device.forward(qn)) * W
+            if en @ en < e @ e:
+                q, lam = qn, max(lam * 0.3, 1e-12)
+            else:
+                lam *= 10.0
+            if np.linalg.norm(en) < 1e-12 or lam > 1e8:
+                break
+        err = vm.pose_error(T, device.forward(q))
+        if best is None or np.linalg.norm(err * W) < np.linalg.norm(best_err * W):
+            best, best_err = q, err
+    return best, best_err
+
+
+def initial_joints(scenario: dict, device, mechanism) -> np.ndarray:
+    ini = scenario["initial"]
+    if ini.get("q") is not None:
+        return np.asarray(ini["q"], dtype=float)
+    theta = mechanism.home.copy()
+    theta[0] = ini["theta"]
+    T = mechanism.forward(theta)
+    if ini.get("stylus_theta") is not None:
+        th2 = theta.copy()
+        th2[0] = ini["stylus_theta"]
+        T[:3, :3] = mechanism.forward(th2)[:3, :3]
+    T[:3, 3] += np.asarray(ini["offset"])
+    q, err = solve_ik(device, T, mechanism.length_scale)
+    if np.linalg.norm(err[:3]) > 1e-6 or np.linalg.norm(err[3:]) > 1e-5:
+        raise ValueError(
+            f"initial: the device cannot reach the start pose (position error "
+            f"{np.linalg.norm(err[:3]) * 1e3:.3g} mm, orientation error "
+            f"{math.degrees(np.linalg.norm(err[3:])):.3g} deg); move the mechanism or the start"
+        )
+    return q
+
+
+# ---------------------------------------------------------------------------------------
+# geometry for the log
+
+
+class PlanarGeometry:
+    """Distance from a PlanarArm's circle and the angles of the handle on it."""
+
+    def __init__(self, mech):
+        self.c = np.asarray(mech.pivot, dtype=float)
+        self.n = np.asarray(mech.normal, dtype=float)
+        self.n /= np.linalg.norm(self.n)
+        self.d = np.asarray(mech.zero_direction, dtype=float)
+        self.d /= np.linalg.norm(self.d)
+        self.e = np.cross(self.n, self.d)
+        self.L = float(mech.length)
+
+    def measure(self, T: np.ndarray) -> tuple[float, float, float]:
+        w = T[:3, 3] - self.c
+        h = float(w @ self.n)
+        u, v = float(w @ self.d), float(w @ self.e)
+        r = math.hypot(u, v)
+        dist = math.hypot(r - self.L, h)
+        s = -T[:3, 2]  # from the pivot toward the handle, if the stylus points at the pivot
+        return dist, math.atan2(v, u), math.atan2(float(s @ self.e), float(s @ self.d))
+
+
+# ---------------------------------------------------------------------------------------
+# progress
+
+
+class Progress:
+    """A one-line progress bar on stderr."""
+
+    def __init__(self, label: str, total: float, enabled: bool):
+        self.label, self.total, self.enabled = label, total, enabled
+        self.last = -1
+
+    def update(self, done: float) -> None:
+        if not self.enabled:
+            return
+        pct = int(100 * done / self.total) if self.total > 0 else 100
+        if pct == self.last:
+            return
+        self.last = pct
+        bar = "#" * (pct // 4) + "-" * (25 - pct // 4)
+        sys.stderr.write(f"\r{self.label:<16} [{bar}] {pct:3d}%  {done:6.2f}/{self.total:.2f} s")
+        sys.stderr.flush()
+
+    def close(self, wall: float) -> None:
+        if self.enabled:
+            sys.stderr.write(f"  ({wall:.1f} s wall)\n")
+            sys.stderr.flush()
+
+
+# ---------------------------------------------------------------------------------------
+# result
+
+
+@dataclass
+class SimResult:
+    """One run: the per-cycle log (`log`, one row per control cycle, columns `columns`),
+    timings and everything needed to reproduce and describe it (`info`)."""
+
+    scenario: Any
+    columns: list[str]
+    log: np.ndarray
+    sim_time_s: float
+    wall_time_s: float
+    info: dict = field(default_factory=dict)
+
+    def col(self, name: str) -> np.ndarray:
+        return self.log[:, self.columns.index(name)]
+
+    def cols(self, *names: str) -> np.ndarray:
+        idx = [self.columns.index(n) for n in names]
+        return self.log[:, idx]
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.col("t")
+
+    @property
+    def n_cycles(self) -> int:
+        return int(self.log.shape[0])
+
+
+def _names(prefix: str, n: int) -> list[str]:
+    return [f"{prefix}{i}" for i in range(n)]
+
+
+def log_columns(n: int, m: int) -> list[str]:
+    xyz = ["x", "y", "z"]
+    return (
+        ["t"] + _names("q", n) + _names("dq", n) + _names("qm", n) + _names("dqm", n)
+        + ["px", "py", "pz", "sx", "sy", "sz", "vx", "vy", "vz", "wx", "wy", "wz"]
+        + ["fx", "fy", "fz", "mx", "my", "mz"]
+        + _names("tau", n) + _names("tau_motor", n)
+        + ["status", "ramp", "iterations", "iterations_star"]
+        + _names("theta", m) + _names("theta_star", m)
+        + _names("e", 6) + _names("e_dot", 6) + _names("e_star", 6) + _names("e_star_dot", 6)
+        + _names("f_null", 6) + _names("f_range", 6)
+        + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz"]
+        + ["ax", "ay", "az", "segment"]
+        + ["dist", "arm_pos_angle", "arm_stylus_angle"]
+        + [f"ff1{c}" for c in xyz] + [f"ff2{c}" for c in xyz] + ["grip_twist"]
+    )
+
+
+UNITS = {
+    "t": "s", "q": "rad", "dq": "rad/s", "qm": "rad (measured)", "dqm": "rad/s (estimated)",
+    "px": "m", "sx": "unit stylus direction", "vx": "m/s", "wx": "rad/s",
+    "fx": "N (device on handle)", "mx": "N·m (device on handle)",
+    "tau": "N·m (controller command)", "tau_motor": "N·m (motor output incl. gravity compensation, saturated)",
+    "status": "bits (virtmech.status)", "ramp": "1", "theta": "rad (nearest placement, W_e)",
+    "theta_star": "rad (un-powered placement, W_e*)", "e": "m x3, rad x3", "e_dot": "m/s, rad/s",
+    "e_star": "m, rad", "e_star_dot": "m/s, rad/s", "f_null": "N, N·m (eq. 26 null-space part)",
+    "f_range": "N, N·m (eq. 26 range-space part)", "fhx": "N (hand on handle)",
+    "mhx": "N·m (hand on handle)", "ax": "m (hand anchor)", "segment": "intent segment index",
+    "dist": "m (distance from the mechanism's path)",
+    "arm_pos_angle": "rad (PlanarArm: angle of the handle position about the pivot)",
+    "arm_stylus_angle": "rad (PlanarArm: mechanism angle the stylus points for)",
+    "ff1x": "N (finger 1 on handle)", "ff2x": "N (finger 2 on handle)",
+    "grip_twist": "N·m (moment about the stylus the grip adds)",
+}
+
+
+# ---------------------------------------------------------------------------------------
+# the loop
+
+
+def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
+    """Runs a scenario (a virtmech.scenarios.Scenario, a name or a path) headless.
+    `seed` overrides the scenario's; same scenario and seed give the same log."""
+    import mujoco
+
+    from .. import scenarios as sc
+
+    if not isinstance(scenario, sc.Scenario):
+        scenario = sc.load(scenario)
+    S = scenario.data
+    seed = S["seed"] if seed is None else int(seed)
+    rng = np.random.default_rng(seed)
+
+    device, base = make_device(S["device"])
+    mech = make_mechanism(S["mechanism"])
+    ctrl = vm.Controller(device, mech, **controller_kwargs(S["controller"]))
+    T_ctrl = S["controller"]["period_s"]
+    n, m = device.dof, mech.dof
+    actuated = np.asarray(device.actuated, dtype=bool)
+    act_idx = np.flatnonzero(actuated)
+
+    human = HandImpedance(**{k: S["human"][k] for k in HandImpedance().to_dict()})
+    contacts = S["human"]["grip_contacts"]
+    phys = device_physics(S["device"])
+    gravity_on = S["physics"]["gravity"]
+    g_world = np.array([0.0, -9.81, 0.0]) if isinstance(device, vm.PhantomOmni) else np.array([0.0, 0.0, -9.81])
+    nsub = int(round(S["physics"]["rate_hz"] * T_ctrl))
+    built: BuiltModel = build_mjcf(
+        device, params=phys, hand=HandBody(human.mass_kg, human.inertia), base=base,
+        gravity=g_world if gravity_on else np.zeros(3), timestep=T_ctrl / nsub,
+    )
+    model = compile_model(built)
+    data = mujoco.MjData(model)
+    C, Cinv, c0 = built.coupling.C, built.coupling.Cinv, built.coupling.c0
+    CinvT = Cinv.T.copy()
+
+    q0 = initial_joints(S, device, mech)
+    data.qpos[:] = C @ q0 + c0
+    data.qvel[:] = 0.0
+    mujoco.mj_forward(model, data)
+
+    grav_comp = gravity_on and S["physics"]["gravity_compensation"]
+    comp_bodies = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in built.device_bodies]
+    body_mass = model.body_mass.copy()
+    jacp = np.zeros((3, model.nv))
+
+    sensors = Sensors(SensorSettings(**S["sensors"]), n, T_ctrl, rng)
+    intent = Intent(S["intent"], human, mech, device.forward(q0), T_ctrl)
+    planar = PlanarGeometry(mech) if S["mechanism"]["type"] == "PlanarArm" else None
+
+    columns = log_columns(n, m)
+    N = int(round(S["duration_s"] / T_ctrl)) + 1
+    log = np.zeros((N, len(columns)))
+    bar = Progress(scenario.name, S["duration_s"], progress)
+
+    ctrl_out = np.zeros(len(act_idx))
+    wall0 = time.perf_counter()
+    fwd, jac, pe = device.forward, device.jacobian, vm.pose_error
+    for k in range(N):
+        t = k * T_ctrl
+        q = Cinv @ (data.qpos - c0)
+        dq = Cinv @ data.qvel
+        qm, dqm = sensors.read(q)
+        out = ctrl.step(qm, dqm, t)
+        tau = out.torque
+        cmd = tau.copy()
+        if grav_comp:
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            g_s = np.zeros(model.nv)
+            for b in comp_bodies:
+                mujoco.mj_jacBodyCom(model, data, jacp, None, b)
+                g_s += jacp.T @ (body_mass[b] * g_world)
+            cmd[act_idx] -= (C.T @ g_s)[act_idx]
+        ctrl_out[:] = cmd[act_idx]
+        data.ctrl[:] = ctrl_out
+
+        T_h = fwd(q)
+        target = intent.update(t, T_h)
+        wrench_h0 = None
+        for _ in range(nsub):
+            qs = Cinv @ (data.qpos - c0)
+            dqs = Cinv @ data.qvel
+            Th = fwd(qs)
+            J = jac(qs)
+            tw = J @ dqs
+            W_h = hand_wrench(target, Th, tw)
+            if wrench_h0 is None:
+                wrench_h0, twist0 = W_h, tw
+            data.qfrc_applied[:] = CinvT @ (J.T @ W_h)
+            mujoco.mj_step(model, data)
+
+        # the record of this cycle (state at t, commands held over [t, t + T))
+        wrench = out.wrench
+        if planar is not None:
+            dist, a_pos, a_sty = planar.measure(T_h)
+        else:
+            dist, a_pos, a_sty = float(np.linalg.norm(out.error[:3])), math.nan, math.nan
+        p1, F1, p2, F2, mz = finger_forces(T_h, wrench, contacts)
+        motor = np.zeros(n)
+        motor[act_idx] = data.actuator_force
+        motor_dev = motor  # actuators act on device joints directly
+        log[k] = np.concatenate((
+            [t], q, dq, qm, dqm, T_h[:3, 3], T_h[:3, 2], twist0,
+            wrench, tau, motor_dev,
+            [out.status, out.ramp, out.iterations, out.iterations_star],
+            out.theta, out.theta_star, out.error, out.error_dot, out.error_star,
+            out.error_star_dot, out.wrench_null, out.wrench_range, wrench_h0,
+            target.p, [target.segment], [dist, a_pos, a_sty], F1, F2, [mz],
+        ))
+        if progress and k % 50 == 0:
+            bar.update(t)
+    wall = time.perf_counter() - wall0
+    bar.update(S["duration_s"])
+    bar.close(wall)
+    del pe
+
+    info = {
+        "device": device.to_dict(),
+        "device_physics": phys.to_dict(),
+        "mechanism": mech.to_dict(),
+        "controller_model": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in ctrl.model.items()},
+        "human": human.to_dict(),
+        "grip_contacts": list(contacts),
+        "sensors": SensorSettings(**S["sensors"]).to_dict(),
+        "physics": {"timestep_s": T_ctrl / nsub, "substeps": nsub, "gravity": (g_world if gravity_on else np.zeros(3)).tolist(),
+                    "gravity_compensation": grav_comp, "integrator": "implicitfast"},
+        "initial_q": q0.tolist(),
+        "seed": seed,
+        "versions": versions(),
+        "mjcf": built.xml,
+    }
+    return SimResult(scenario=scenario, columns=columns, log=log, sim_time_s=(N - 1) * T_ctrl,
+                     wall_time_s=wall, info=info)
+
+
+def versions() -> dict:
+    import platform
+
+    import mujoco
+
+    return {"virtmech": vm.__version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
+            "python": platform.python_version()}

@@ -1,0 +1,146 @@
+"""What every run writes: ``log.csv`` (one row per control cycle), ``run.json`` (units,
+versions, the scenario as run, the mechanism's parameters under ``"mechanism"``), and the
+per-scenario metrics that ``summary.json`` collects over a set of runs."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .loop import UNITS, SimResult
+
+WITHIN_M = 1e-3  # the "within 1 mm of the circle" threshold of the metrics
+
+
+def _unit(col: str) -> str:
+    if col in UNITS:
+        return UNITS[col]
+    stem = col.rstrip("0123456789")
+    return UNITS.get(stem, "")
+
+
+def write_log_csv(result: SimResult, path: Path) -> None:
+    """log.csv: a header of column names, then one row per control cycle ('%.10g')."""
+    np.savetxt(path, result.log, delimiter=",", header=",".join(result.columns), comments="",
+               fmt="%.10g")
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        x = float(x)
+        return x if math.isfinite(x) else str(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (np.bool_,)):
+        return bool(x)
+    return x
+
+
+def run_json(result: SimResult) -> dict:
+    info = dict(result.info)
+    mjcf = info.pop("mjcf", None)
+    return _jsonable({
+        "name": result.scenario.name,
+        "scenario": result.scenario.to_dict(),
+        "scenario_source": result.scenario.source,
+        "mechanism": info.pop("mechanism"),
+        "device": info.pop("device"),
+        "versions": info.pop("versions"),
+        "seed": info.pop("seed"),
+        "sim_time_s": result.sim_time_s,
+        "wall_time_s": result.wall_time_s,
+        "cycles": result.n_cycles,
+        "columns": result.columns,
+        "units": {c: _unit(c) for c in result.columns},
+        "metrics": metrics(result),
+        **info,
+        "mjcf": mjcf,
+    })
+
+
+def write_run(result: SimResult, out_dir: str | Path) -> Path:
+    """Writes log.csv and run.json into out_dir (created); returns out_dir."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_log_csv(result, out / "log.csv")
+    (out / "run.json").write_text(json.dumps(run_json(result), indent=2) + "\n", encoding="utf-8")
+    return out
+
+
+def metrics(result: SimResult) -> dict:
+    """Per-run metrics (SI units):
+
+    - time_to_1mm_s: the time from which on the handle stays within 1 mm of the mechanism's
+      path to the end of the run (NaN: it does not end within 1 mm)
+    - dist_rms_after_m, dist_max_after_m: RMS and largest distance from then on
+    - first_within_1mm_s: the first time it comes within 1 mm (it may leave again)
+    - force_max_n, force_rms_n: largest and RMS force the device applies at the handle
+    - passive_torque_max: largest |torque| commanded or delivered on a passive joint
+    - torque_fraction_max: largest |commanded torque| / torque limit over the motors
+    - motor_fraction_max: the same for the motors' output (with gravity compensation)
+    - energy_to_user_j: sum over cycles of T (f . v + m . w), the work the device's wrench
+      did on the handle and the hand holding it (negative: energy taken from the user)
+    """
+    from .loop import make_device
+
+    r = result
+    device, _ = make_device(r.scenario.data["device"])
+    n = device.dof
+    act = np.asarray(device.actuated, dtype=bool)
+    lim = np.asarray(device.torque_limit, dtype=float)
+    t = r.t
+    d = r.col("dist")
+    outside = np.flatnonzero(d > WITHIN_M)
+    first_in = np.flatnonzero(d <= WITHIN_M)
+    t_first = float(t[first_in[0]]) if first_in.size else math.nan
+    k0 = 0 if outside.size == 0 else int(outside[-1]) + 1
+    if k0 < len(d):
+        t1 = float(t[k0])
+        after = d[k0:]
+        rms_after, max_after = float(np.sqrt(np.mean(after**2))), float(after.max())
+    else:
+        t1 = rms_after = max_after = math.nan
+    F = r.cols("fx", "fy", "fz")
+    fmag = np.linalg.norm(F, axis=1)
+    tau = r.cols(*[f"tau{i}" for i in range(n)])
+    mot = r.cols(*[f"tau_motor{i}" for i in range(n)])
+    passive = np.concatenate([np.abs(tau[:, ~act]).ravel(), np.abs(mot[:, ~act]).ravel(), [0.0]])
+    frac = np.abs(tau[:, act]) / lim[act]
+    mfrac = np.abs(mot[:, act]) / lim[act]
+    T = r.scenario.data["controller"]["period_s"]
+    W = r.cols("fx", "fy", "fz", "mx", "my", "mz")
+    V = r.cols("vx", "vy", "vz", "wx", "wy", "wz")
+    energy = float(T * np.sum(W * V))
+    status = r.col("status").astype(np.int64)
+    return {
+        "time_to_1mm_s": t1,
+        "first_within_1mm_s": t_first,
+        "dist_rms_after_m": rms_after,
+        "dist_max_after_m": max_after,
+        "force_max_n": float(fmag.max()),
+        "force_rms_n": float(np.sqrt(np.mean(fmag**2))),
+        "passive_torque_max": float(passive.max()),
+        "torque_fraction_max": float(frac.max()),
+        "motor_fraction_max": float(mfrac.max()),
+        "energy_to_user_j": energy,
+        "faults": int(np.count_nonzero(status & 0xFF00)),
+        "sim_time_s": r.sim_time_s,
+        "wall_time_s": r.wall_time_s,
+        "real_time_factor": r.sim_time_s / r.wall_time_s if r.wall_time_s > 0 else math.inf,
+    }
+
+
+def write_summary(runs: dict[str, dict], path: str | Path) -> dict:
+    """summary.json: {"runs": {name: metrics}, ...} over a set of runs."""
+    summary = _jsonable({"runs": runs, "within_m": WITHIN_M})
+    Path(path).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    return summary

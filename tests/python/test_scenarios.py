@@ -1,0 +1,128 @@
+"""Scenario files: the shipped ones load, broken ones fail with errors that name the key,
+the value and what was expected."""
+
+from __future__ import annotations
+
+import pytest
+
+import virtmech.scenarios as sc
+
+SHIPPED = [f"{d}-fig{n}" for d in ("omni", "planar3r") for n in (9, 10, 11, 12)]
+
+GOOD = """
+name = "t"
+duration_s = 1.0
+[device]
+type = "PhantomOmni"
+[mechanism]
+type = "PlanarArm"
+pivot = [-0.07, 0.04, 0.0]
+length = 0.08
+[[intent]]
+action = "twist"
+start_s = 0.1
+duration_s = 0.5
+angle_deg = 10.0
+"""
+
+
+def test_the_papers_figures_ship_on_both_devices():
+    assert sorted(sc.names()) == sorted(SHIPPED)
+    for name in SHIPPED:
+        s = sc.load(name)
+        assert s.name == name
+        assert s["device"]["type"] == ("PhantomOmni" if name.startswith("omni") else "Planar3R")
+        assert s["mechanism"]["type"] == "PlanarArm"
+        assert s["mechanism"]["normal"] == [0.0, 0.0, 1.0]  # the x-y plane, z held
+    assert sc.load("omni-fig9")["controller"]["law"] == "null_space"
+    assert sc.load("omni-fig10")["controller"]["law"] == "auto"
+
+
+def test_defaults_are_filled_in():
+    s = sc.loads(GOOD)
+    assert s["sensors"]["counts_per_rev"] == 15000
+    assert s["controller"]["period_s"] == 1e-3
+    assert s["physics"]["rate_hz"] == 4000.0
+    assert s["intent"][0]["axis"] == "normal"
+
+
+def test_load_by_path(tmp_path):
+    p = tmp_path / "x.toml"
+    p.write_text(GOOD)
+    assert sc.load(p).name == "t"
+    assert sc.load(str(p)).name == "t"
+
+
+def _error(text: str) -> str:
+    with pytest.raises(sc.ScenarioError) as e:
+        sc.loads(text, "bad.toml")
+    return str(e.value)
+
+
+def test_unknown_key_is_named_with_the_keys_expected():
+    msg = _error(GOOD.replace("[device]", "[device]\nstifness = 3"))
+    assert msg.startswith("bad.toml: device.stifness: unknown key in [device]")
+    assert "expected one of" in msg and "l1" in msg and "max_force" in msg
+    msg = _error(GOOD + "\n[human]\nmas_kg = 0.3\n")
+    assert "human.mas_kg: unknown key" in msg and "mass_kg" in msg
+    msg = _error("colour = 1\n" + GOOD)
+    assert "colour: unknown key in the top level" in msg
+    msg = _error(GOOD.replace('angle_deg = 10.0', 'angle_deg = 10.0\nforce_frme = "world"'))
+    assert "intent[0].force_frme: unknown key" in msg
+
+
+def test_wrong_type_names_key_value_and_expectation():
+    msg = _error(GOOD.replace("duration_s = 1.0", 'duration_s = "long"'))
+    assert "duration_s: expected a number" in msg and "'long'" in msg and "str" in msg
+    msg = _error(GOOD.replace("pivot = [-0.07, 0.04, 0.0]", "pivot = [-0.07, 0.04]"))
+    assert "mechanism.pivot: expected 3 numbers, got 2 values" in msg
+    msg = _error(GOOD + '\n[physics]\ngravity = "yes"\n')
+    assert "physics.gravity: expected true or false, got str 'yes'" in msg
+    msg = _error(GOOD + "\n[sensors]\ncounts_per_rev = 1.5\n")
+    assert "sensors.counts_per_rev: expected an integer, got float 1.5" in msg
+    msg = _error(GOOD.replace('type = "PhantomOmni"', 'type = "Falcon"'))
+    assert "device.type: value 'Falcon' is not allowed; expected one of 'PhantomOmni', 'Planar3R'" in msg
+
+
+def test_out_of_range_names_key_value_and_range():
+    msg = _error(GOOD.replace("length = 0.08", "length = -0.08"))
+    assert "mechanism.length: value -0.08 is out of range; expected a number > 0" in msg
+    msg = _error(GOOD + "\n[sensors]\ndropout_probability = 1.5\n")
+    assert "sensors.dropout_probability: value 1.5 is out of range; expected a number >= 0 and <= 1" in msg
+    msg = _error(GOOD + "\n[human]\ndamping = -2\n")
+    assert "human.damping: value -2.0 is out of range" in msg
+    msg = _error(GOOD + "\n[physics]\nrate_hz = 4500\n")
+    assert "physics.rate_hz: value 4500 is out of range; expected a whole multiple of the control rate 1000 Hz" in msg
+    msg = _error(GOOD.replace("duration_s = 0.5", "duration_s = -0.5"))
+    assert "intent[0].duration_s: value -0.5 is out of range; expected a number >= 0" in msg
+
+
+def test_missing_field_is_named():
+    msg = _error(GOOD.replace("duration_s = 1.0\n", ""))
+    assert "bad.toml: duration_s: missing required field" in msg
+    msg = _error(GOOD.replace("length = 0.08\n", ""))
+    assert "mechanism.length: missing required field" in msg
+    msg = _error(GOOD.replace("angle_deg = 10.0\n", ""))
+    assert "intent[0].angle_deg: missing required field" in msg
+    msg = _error(GOOD.replace('[mechanism]\ntype = "PlanarArm"\n', "[mechanism]\n"))
+    assert "mechanism.type: missing required field; expected one of 'PlanarArm'" in msg
+    msg = _error(GOOD.replace('[device]\ntype = "PhantomOmni"\n', ""))
+    assert "device: missing required field" in msg or "device.type: missing required field" in msg
+
+
+def test_not_toml_is_reported():
+    msg = _error("name = \n")
+    assert msg.startswith("bad.toml: not valid TOML")
+
+
+def test_unknown_shipped_name_lists_the_known_ones():
+    with pytest.raises(sc.ScenarioError, match="omni-fig10"):
+        sc.load("omni-fig13")
+
+
+def test_overrides_are_validated():
+    s = sc.load("omni-fig10")
+    assert s.with_overrides(duration_s=0.5).duration_s == 0.5
+    assert s.with_overrides(sensors={"noise_rad": 1e-4})["sensors"]["noise_rad"] == 1e-4
+    with pytest.raises(sc.ScenarioError, match="duration_s: value -1"):
+        s.with_overrides(duration_s=-1.0)
