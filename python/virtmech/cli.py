@@ -1,9 +1,9 @@
 """The ``virtmech`` command (also ``python -m virtmech``).
 
-    virtmech demo [--out DIR]             every shipped scenario, summary.json, index.html
-    virtmech run SCENARIO [--out DIR]     one scenario (a TOML path or a shipped name)
-    virtmech scenarios                    the shipped scenarios
-    virtmech bench [ARGS...]              benchmarks (virtmech.bench)
+virtmech demo [--out DIR]             every shipped scenario, summary.json, index.html
+virtmech run SCENARIO [--out DIR]     one scenario (a TOML path or a shipped name)
+virtmech scenarios                    the shipped scenarios
+virtmech bench [ARGS...]              benchmarks (virtmech.bench)
 """
 
 from __future__ import annotations
@@ -54,13 +54,17 @@ def cmd_run(args) -> int:
 
 
 def _print_metrics(runs: dict) -> None:
-    print(f"{'scenario':<16} {'to 1 mm [s]':>11} {'max after [mm]':>14} {'max |f| [N]':>11} "
-          f"{'tau/limit':>9} {'passive':>8} {'E [mJ]':>8} {'x real':>7}")
+    print(
+        f"{'scenario':<16} {'to 1 mm [s]':>11} {'max after [mm]':>14} {'max |f| [N]':>11} "
+        f"{'tau/limit':>9} {'passive':>8} {'E [mJ]':>8} {'x real':>7}"
+    )
     for name, m in runs.items():
         t1 = m["time_to_1mm_s"]
-        print(f"{name:<16} {t1:11.3f} {m['dist_max_after_m'] * 1e3:14.3f} {m['force_max_n']:11.2f} "
-              f"{m['torque_fraction_max']:9.2f} {m['passive_torque_max']:8.2g} "
-              f"{m['energy_to_user_j'] * 1e3:8.2f} {m['real_time_factor']:7.1f}")
+        print(
+            f"{name:<16} {t1:11.3f} {m['dist_max_after_m'] * 1e3:14.3f} {m['force_max_n']:11.2f} "
+            f"{m['torque_fraction_max']:9.2f} {m['passive_torque_max']:8.2g} "
+            f"{m['energy_to_user_j'] * 1e3:8.2f} {m['real_time_factor']:7.1f}"
+        )
 
 
 def cmd_demo(args) -> int:
@@ -77,13 +81,21 @@ def cmd_demo(args) -> int:
         s = sc.load(name)
         m = _run_one(s, out / name, None, not args.quiet)
         runs[name] = m
-        entries.append({"name": name, "description": " ".join(s.data["description"].split()),
-                        "dir": name, "metrics": m})
+        entries.append(
+            {
+                "name": name,
+                "description": " ".join(s.data["description"].split()),
+                "dir": name,
+                "metrics": m,
+            }
+        )
     write_summary(runs, out / "summary.json")
     index = write_index(out, entries)
     _print_metrics(runs)
-    print(f"virtmech demo: {len(names)} scenarios in {time.perf_counter() - t0:.1f} s; "
-          f"report: {index}")
+    print(
+        f"virtmech demo: {len(names)} scenarios in {time.perf_counter() - t0:.1f} s; "
+        f"report: {index}"
+    )
     return 0
 
 

@@ -17,10 +17,18 @@ import virtmech.scenarios as sc  # noqa: E402
 from virtmech.cli import main  # noqa: E402
 
 REQUIRED = (
-    ["t"] + [f"q{i}" for i in range(6)] + [f"dq{i}" for i in range(6)] + ["px", "py", "pz"]
-    + ["fx", "fy", "fz", "mx", "my", "mz"] + [f"tau{i}" for i in range(6)] + ["status"]
-    + ["theta0", "theta_star0"] + [f"e{i}" for i in range(6)] + [f"e_star{i}" for i in range(6)]
-    + [f"f_null{i}" for i in range(6)] + [f"f_range{i}" for i in range(6)]
+    ["t"]
+    + [f"q{i}" for i in range(6)]
+    + [f"dq{i}" for i in range(6)]
+    + ["px", "py", "pz"]
+    + ["fx", "fy", "fz", "mx", "my", "mz"]
+    + [f"tau{i}" for i in range(6)]
+    + ["status"]
+    + ["theta0", "theta_star0"]
+    + [f"e{i}" for i in range(6)]
+    + [f"e_star{i}" for i in range(6)]
+    + [f"f_null{i}" for i in range(6)]
+    + [f"f_range{i}" for i in range(6)]
     + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz"]
 )
 
@@ -34,7 +42,9 @@ def test_scenarios_lists_the_shipped_ones(capsys):
 
 def test_run_writes_log_and_run_json(tmp_path, capsys):
     src = tmp_path / "mine.toml"
-    src.write_text(sc.path_of("omni-fig10").read_text().replace("duration_s = 2.0", "duration_s = 0.3"))
+    src.write_text(
+        sc.path_of("omni-fig10").read_text().replace("duration_s = 2.0", "duration_s = 0.3")
+    )
     out = tmp_path / "out"
     assert main(["run", str(src), "--out", str(out), "--quiet"]) == 0
     with open(out / "log.csv") as f:
@@ -66,12 +76,22 @@ def test_run_reports_a_broken_scenario(tmp_path, capsys):
 
 def test_demo_writes_folders_summary_and_index(tmp_path, capsys):
     out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--only", "omni-fig12", "planar3r-fig9", "--quiet"]) == 0
+    assert (
+        main(["demo", "--out", str(out), "--only", "omni-fig12", "planar3r-fig9", "--quiet"]) == 0
+    )
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["runs"]) == {"omni-fig12", "planar3r-fig9"}
     m = summary["runs"]["omni-fig12"]
-    for key in ("time_to_1mm_s", "dist_rms_after_m", "dist_max_after_m", "force_max_n",
-                "force_rms_n", "passive_torque_max", "torque_fraction_max", "energy_to_user_j"):
+    for key in (
+        "time_to_1mm_s",
+        "dist_rms_after_m",
+        "dist_max_after_m",
+        "force_max_n",
+        "force_rms_n",
+        "passive_torque_max",
+        "torque_fraction_max",
+        "energy_to_user_j",
+    ):
         assert key in m
     assert m["passive_torque_max"] == 0.0
     assert 0 < m["torque_fraction_max"] <= 1.0
@@ -95,13 +115,22 @@ def test_bench_is_handed_to_virtmech_bench(monkeypatch):
 
 
 def test_python_dash_m_virtmech_runs_the_cli():
-    p = subprocess.run([sys.executable, "-m", "virtmech", "scenarios"], capture_output=True,
-                       text=True, check=True)
+    p = subprocess.run(
+        [sys.executable, "-m", "virtmech", "scenarios"], capture_output=True, text=True, check=True
+    )
     assert "omni-fig11" in p.stdout
 
 
 def test_import_virtmech_does_not_import_mujoco_or_matplotlib():
-    code = ("import sys, virtmech, virtmech.sim, virtmech.viz, virtmech.scenarios, virtmech.cli;"
-            "print(sorted(m for m in ('mujoco', 'matplotlib') if m in sys.modules))")
+    code = (
+        "import sys, virtmech, virtmech.sim, virtmech.viz, virtmech.scenarios, virtmech.cli;"
+        "print(sorted(m for m in ('mujoco', 'matplotlib') if m in sys.modules))"
+    )
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert p.stdout.strip() == "[]"
+
+
+def test_run_shows_a_progress_bar_on_stderr(tmp_path, capsys):
+    assert main(["run", "planar3r-fig9", "--duration", "0.2", "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "planar3r-fig9" in err and "100%" in err and "#" in err

@@ -67,7 +67,7 @@ def test_unknown_key_is_named_with_the_keys_expected():
     assert "human.mas_kg: unknown key" in msg and "mass_kg" in msg
     msg = _error("colour = 1\n" + GOOD)
     assert "colour: unknown key in the top level" in msg
-    msg = _error(GOOD.replace('angle_deg = 10.0', 'angle_deg = 10.0\nforce_frme = "world"'))
+    msg = _error(GOOD.replace("angle_deg = 10.0", 'angle_deg = 10.0\nforce_frme = "world"'))
     assert "intent[0].force_frme: unknown key" in msg
 
 
@@ -81,18 +81,27 @@ def test_wrong_type_names_key_value_and_expectation():
     msg = _error(GOOD + "\n[sensors]\ncounts_per_rev = 1.5\n")
     assert "sensors.counts_per_rev: expected an integer, got float 1.5" in msg
     msg = _error(GOOD.replace('type = "PhantomOmni"', 'type = "Falcon"'))
-    assert "device.type: value 'Falcon' is not allowed; expected one of 'PhantomOmni', 'Planar3R'" in msg
+    assert (
+        "device.type: value 'Falcon' is not allowed; expected one of 'PhantomOmni', 'Planar3R'"
+        in msg
+    )
 
 
 def test_out_of_range_names_key_value_and_range():
     msg = _error(GOOD.replace("length = 0.08", "length = -0.08"))
     assert "mechanism.length: value -0.08 is out of range; expected a number > 0" in msg
     msg = _error(GOOD + "\n[sensors]\ndropout_probability = 1.5\n")
-    assert "sensors.dropout_probability: value 1.5 is out of range; expected a number >= 0 and <= 1" in msg
+    assert (
+        "sensors.dropout_probability: value 1.5 is out of range; "
+        "expected a number >= 0 and <= 1" in msg
+    )
     msg = _error(GOOD + "\n[human]\ndamping = -2\n")
     assert "human.damping: value -2.0 is out of range" in msg
     msg = _error(GOOD + "\n[physics]\nrate_hz = 4500\n")
-    assert "physics.rate_hz: value 4500 is out of range; expected a whole multiple of the control rate 1000 Hz" in msg
+    assert (
+        "physics.rate_hz: value 4500 is out of range; "
+        "expected a whole multiple of the control rate 1000 Hz" in msg
+    )
     msg = _error(GOOD.replace("duration_s = 0.5", "duration_s = -0.5"))
     assert "intent[0].duration_s: value -0.5 is out of range; expected a number >= 0" in msg
 

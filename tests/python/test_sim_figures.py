@@ -4,8 +4,9 @@ numerically, no passive joint ever gets torque and no motor exceeds its limit.
 Thresholds (each scenario file states its own under [checks]; they are read from there):
 
 - fig10: starts >= 5 mm off the circle; within 1 mm by `reach_s` (0.5 s) and stays there;
-  while approaching (>= 5 mm away, |f| >= 1 N) the force points 5..35 degrees off the
-  straight line to the circle, toward the mechanism position of the handle's angle (eq. 25).
+  at the start of the approach (>= 80 % of the start distance away, |f| >= 1 N) the force
+  points 5..35 degrees off the straight line to the circle, toward the mechanism position
+  of the handle's angle (eq. 25).
 - fig11: the twist of 30 degrees carries the handle >= `min_travel_deg` (27) along the
   circle; lag between the stylus's angle and the handle's position <= `max_lag_deg` (3);
   distance <= `max_distance_m` (3 mm: a 1.2 N lean on a 500 N/m constraint); while the hand
@@ -72,7 +73,7 @@ def test_fig10_large_force_brings_the_handle_to_the_circle(runs, dev):
     F = r.cols("fx", "fy", "fz")
     rad, tan, _ = circle_frame(r)
     fmag = np.linalg.norm(F, axis=1)
-    approach = (d >= 5e-3) & (fmag >= 1.0)
+    approach = (d >= 0.8 * d[0]) & (fmag >= 1.0)  # the start of the approach, far away
     assert approach.sum() >= 20  # a "large force" phase exists
     assert fmag.max() >= 0.99 * r.info["device"]["max_force"]  # it is as large as allowed
     # the straight line to the nearest circle point is -rad (outside) or +rad (inside)
@@ -178,7 +179,8 @@ def test_passive_joints_get_no_torque_and_motors_stay_in_their_limits(runs, name
 
 def test_same_scenario_and_seed_give_the_same_log():
     s = sc.load("omni-fig11").with_overrides(
-        duration_s=0.6, sensors={"noise_rad": 2e-4, "dropout_probability": 0.05, "delay_cycles": 1})
+        duration_s=0.6, sensors={"noise_rad": 2e-4, "dropout_probability": 0.05, "delay_cycles": 1}
+    )
     a, b = sim.run(s, seed=4), sim.run(s, seed=4)
     assert a.columns == b.columns
     assert np.array_equal(a.log, b.log)
@@ -188,7 +190,8 @@ def test_same_scenario_and_seed_give_the_same_log():
 
 def test_sensor_delay_and_noise_still_hold_the_handle_to_the_circle():
     s = sc.load("planar3r-fig10").with_overrides(
-        duration_s=1.0, sensors={"noise_rad": 1e-4, "delay_cycles": 2, "dropout_probability": 0.02})
+        duration_s=1.0, sensors={"noise_rad": 1e-4, "delay_cycles": 2, "dropout_probability": 0.02}
+    )
     r = sim.run(s)
     assert r.col("dist")[r.t >= 0.6].max() <= 1e-3
 
@@ -197,8 +200,10 @@ def test_gravity_compensation_holds_a_released_omni_up():
     """With gravity on and the hand passive, compensation keeps the Omni where it is; without
     it, the device sags (the controller alone resists the weight through its stiffness)."""
     base = sc.load("omni-fig9").with_overrides(
-        duration_s=1.0, controller={"law": "null_space", "kp": [0.0] * 6, "kv": [0.0] * 6},
-        intent=[{"action": "hold", "start_s": 0.0, "duration_s": 0.0, "translation": "passive"}])
+        duration_s=1.0,
+        controller={"law": "null_space", "kp": [0.0] * 6, "kv": [0.0] * 6},
+        intent=[{"action": "hold", "start_s": 0.0, "duration_s": 0.0, "translation": "passive"}],
+    )
     on = sim.run(base)
     off = sim.run(base.with_overrides(physics={"gravity_compensation": False}))
     drop_on = abs(on.col("py")[-1] - on.col("py")[0])

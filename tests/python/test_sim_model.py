@@ -110,15 +110,18 @@ def test_omni_apparent_tip_mass_is_near_the_reference_45_g():
     built = build_mjcf(omni, hand=HandBody(1e-6, 1e-9))
     model = compile_model(built)
     data = mujoco.MjData(model)
-    for q in (omni.home, np.array([0.0, 0.41, 0.08, -1.51, 0.43, 1.48]),
-              np.array([0.3, 0.7, 0.3, -1.3, 0.9, 1.0])):
+    for q in (
+        omni.home,
+        np.array([0.0, 0.41, 0.08, -1.51, 0.43, 1.48]),
+        np.array([0.3, 0.7, 0.3, -1.3, 0.9, 1.0]),
+    ):
         eig = np.linalg.eigvalsh(apparent_mass(model, data, omni, built.coupling, q))
         assert 0.025 < eig.min() and eig.max() < 0.060, eig
 
 
 def test_gravity_is_along_minus_y_for_the_omni_and_the_hand_weight_is_carried():
-    from virtmech.sim.loop import run
     from virtmech.scenarios import load
+    from virtmech.sim.loop import run
 
     s = load("omni-fig9").with_overrides(duration_s=0.05)
     r = run(s)

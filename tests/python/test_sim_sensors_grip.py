@@ -28,8 +28,9 @@ def test_delay_returns_the_sample_of_k_cycles_ago():
 
 
 def test_dropouts_hold_the_previous_sample():
-    s = Sensors(SensorSettings(counts_per_rev=0, dropout_probability=0.5), 1, 1e-3,
-                np.random.default_rng(1))
+    s = Sensors(
+        SensorSettings(counts_per_rev=0, dropout_probability=0.5), 1, 1e-3, np.random.default_rng(1)
+    )
     out = np.array([s.read(np.array([float(k)]))[0][0] for k in range(400)])
     held = np.diff(out) == 0
     assert 0.35 < held.mean() < 0.65  # about half the samples were lost
@@ -94,8 +95,9 @@ def test_min_jerk_scaling():
 def test_twist_rotates_the_hand_anchor_about_the_plane_normal():
     arm = vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.1)
     T0 = arm.forward([0.2])
-    seg = [{"action": "twist", "start_s": 0.1, "duration_s": 0.5, "angle_deg": 30.0,
-            "axis": "normal"}]
+    seg = [
+        {"action": "twist", "start_s": 0.1, "duration_s": 0.5, "angle_deg": 30.0, "axis": "normal"}
+    ]
     intent = Intent(seg, HandImpedance(), arm, T0, 1e-3)
     for k in range(800):
         target = intent.update(k * 1e-3, T0)
@@ -111,10 +113,48 @@ def test_twist_rotates_the_hand_anchor_about_the_plane_normal():
 def test_follow_moves_the_anchor_along_the_mechanism_and_holds_the_orientation():
     arm = vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.1)
     T0 = arm.forward([0.2])
-    seg = [{"action": "follow", "start_s": 0.0, "duration_s": 1.0, "theta": [0.2, 0.7],
-            "orientation": "hold"}]
+    seg = [
+        {
+            "action": "follow",
+            "start_s": 0.0,
+            "duration_s": 1.0,
+            "theta": [0.2, 0.7],
+            "orientation": "hold",
+        }
+    ]
     intent = Intent(seg, HandImpedance(), arm, T0, 1e-3)
     for k in range(1101):
         target = intent.update(k * 1e-3, T0)
     np.testing.assert_allclose(target.p, arm.forward([0.7])[:3, 3], atol=1e-12)
     np.testing.assert_allclose(target.R, T0[:3, :3], atol=1e-12)
+
+
+def test_follow_offsets_and_a_push_in_handle_axes():
+    arm = vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.1)
+    T0 = arm.forward([0.0])
+    seg = [
+        {
+            "action": "follow",
+            "start_s": 0.0,
+            "duration_s": 1.0,
+            "offsets": [[0.01, 0.0, 0.0], [0.01, 0.02, 0.0]],
+        },
+        {
+            "action": "push",
+            "start_s": 1.0,
+            "duration_s": 1.0,
+            "force": [0.0, 0.0, 2.0],
+            "force_frame": "handle",
+            "ramp_s": 0.1,
+        },
+    ]
+    intent = Intent(seg, HandImpedance(), arm, T0, 1e-3)
+    targets = [intent.update(k * 1e-3, T0) for k in range(2001)]
+    # halfway along the path's length (min-jerk: s(0.5) = 0.5) it is 15 mm along: at the
+    # second waypoint's leg, 5 mm up
+    np.testing.assert_allclose(targets[500].p - T0[:3, 3], [0.01, 0.005, 0.0], atol=1e-12)
+    np.testing.assert_allclose(targets[1000].p - T0[:3, 3], [0.01, 0.02, 0.0], atol=1e-12)
+    # the push acts along the stylus (handle z), fully on between the ramps, then stops
+    np.testing.assert_allclose(targets[1500].force, 2.0 * T0[:3, 2], atol=1e-12)
+    assert np.all(targets[2000].force == 0.0) or np.linalg.norm(targets[2000].force) < 1e-12
+    assert targets[1500].segment == 1

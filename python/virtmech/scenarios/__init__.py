@@ -125,7 +125,9 @@ def path_of(name: str) -> Path:
     """The file of a shipped scenario."""
     p = DATA / f"{name}.toml"
     if not p.exists():
-        raise ScenarioError(f"{name}: no such shipped scenario; expected one of {', '.join(names())}")
+        raise ScenarioError(
+            f"{name}: no such shipped scenario; expected one of {', '.join(names())}"
+        )
     return p
 
 

@@ -9,8 +9,9 @@ INF = float("inf")
 
 def num(default=None, required=False, min=None, max=None, min_exclusive=False, doc=""):
     kw = {} if default is None else {"default": default}
-    return Field("number", required=required, min=min, max=max, min_exclusive=min_exclusive,
-                 doc=doc, **kw)
+    return Field(
+        "number", required=required, min=min, max=max, min_exclusive=min_exclusive, doc=doc, **kw
+    )
 
 
 def vec(n, default=None, required=False, doc=""):
@@ -90,48 +91,69 @@ MECHANISM = Field(
     },
 )
 
-CONTROLLER = Field("table", children={
-    "law": Field("string", default="auto", choices=("auto", "null_space", "under_actuated")),
-    "kp": opt_vec(6, "stiffness [N/m x3, N m/rad x3]"),
-    "kv": opt_vec(6, "damping [N s/m x3, N m s/rad x3]"),
-    "w_a": opt_vec(6), "w_e": opt_vec(6), "w_e_star": opt_vec(6),
-    "error_velocity": Field("string", default="relative", choices=("relative", "handle")),
-    "period_s": num(1e-3, min=1e-5, max=0.1),
-    "ramp_time_s": num(0.25, min=0, max=10),
-    "max_force": num(0.0, min=0, max=1000),
-    "max_iterations": Field("integer", default=10, min=1, max=1000),
-})
+CONTROLLER = Field(
+    "table",
+    children={
+        "law": Field("string", default="auto", choices=("auto", "null_space", "under_actuated")),
+        "kp": opt_vec(6, "stiffness [N/m x3, N m/rad x3]"),
+        "kv": opt_vec(6, "damping [N s/m x3, N m s/rad x3]"),
+        "w_a": opt_vec(6),
+        "w_e": opt_vec(6),
+        "w_e_star": opt_vec(6),
+        "error_velocity": Field("string", default="relative", choices=("relative", "handle")),
+        "period_s": num(1e-3, min=1e-5, max=0.1),
+        "ramp_time_s": num(0.25, min=0, max=10),
+        "max_force": num(0.0, min=0, max=1000),
+        "max_iterations": Field("integer", default=10, min=1, max=1000),
+    },
+)
 
-PHYSICS = Field("table", children={
-    "rate_hz": num(4000.0, min=100, max=100000, doc="physics steps per second"),
-    "gravity": Field("bool", default=True),
-    "gravity_compensation": Field("bool", default=True),
-})
+PHYSICS = Field(
+    "table",
+    children={
+        "rate_hz": num(4000.0, min=100, max=100000, doc="physics steps per second"),
+        "gravity": Field("bool", default=True),
+        "gravity_compensation": Field("bool", default=True),
+    },
+)
 
-SENSORS = Field("table", children={
-    "counts_per_rev": Field("integer", default=15000, min=0, max=10**9),
-    "noise_rad": num(0.0, min=0, max=1),
-    "delay_cycles": Field("integer", default=0, min=0, max=1000),
-    "dropout_probability": num(0.0, min=0, max=1, ),
-    "velocity_cutoff_hz": num(100.0, min=0, max=1e6),
-})
+SENSORS = Field(
+    "table",
+    children={
+        "counts_per_rev": Field("integer", default=15000, min=0, max=10**9),
+        "noise_rad": num(0.0, min=0, max=1),
+        "delay_cycles": Field("integer", default=0, min=0, max=1000),
+        "dropout_probability": num(
+            0.0,
+            min=0,
+            max=1,
+        ),
+        "velocity_cutoff_hz": num(100.0, min=0, max=1e6),
+    },
+)
 
-INITIAL = Field("table", children={
-    "theta": num(0.0, min=-100, max=100, doc="mechanism joint value giving the start pose"),
-    "offset": vec(3, [0.0, 0.0, 0.0]),
-    "stylus_theta": num(min=-100, max=100),
-    "q": Field("vector"),
-})
+INITIAL = Field(
+    "table",
+    children={
+        "theta": num(0.0, min=-100, max=100, doc="mechanism joint value giving the start pose"),
+        "offset": vec(3, [0.0, 0.0, 0.0]),
+        "stylus_theta": num(min=-100, max=100),
+        "q": Field("vector"),
+    },
+)
 
-HUMAN = Field("table", children={
-    "mass_kg": num(0.2, min=0.001, max=5),
-    "damping": num(5.0, min=0, max=100),
-    "stiffness": num(200.0, min=0, max=5000),
-    "inertia": num(2e-4, min=1e-7, max=1),
-    "rot_damping": num(0.01, min=0, max=10),
-    "rot_stiffness": num(1.0, min=0, max=100),
-    "grip_contacts": Field("vector", length=2, default=[-0.015, -0.05]),
-})
+HUMAN = Field(
+    "table",
+    children={
+        "mass_kg": num(0.2, min=0.001, max=5),
+        "damping": num(5.0, min=0, max=100),
+        "stiffness": num(200.0, min=0, max=5000),
+        "inertia": num(2e-4, min=1e-7, max=1),
+        "rot_damping": num(0.01, min=0, max=10),
+        "rot_stiffness": num(1.0, min=0, max=100),
+        "grip_contacts": Field("vector", length=2, default=[-0.015, -0.05]),
+    },
+)
 
 _MODE = ("passive", "hold")
 _COMMON = {
@@ -152,34 +174,56 @@ INTENT = Field(
     variant_key="action",
     variants={
         "hold": dict(_COMMON),
-        "follow": {**_COMMON, "theta": Field("vector", length=2),
-                   "offsets": Field("vector", min_length=1, element=Field("vector", length=3))},
-        "twist": {**_COMMON, "angle_deg": num(required=True, min=-720, max=720, doc="a number [deg]"),
-                  "axis": _AXIS},
-        "resist": {**_COMMON, "angle_deg": num(required=True, min=-720, max=720, doc="a number [deg]"),
-                   "axis": _AXIS},
+        "follow": {
+            **_COMMON,
+            "theta": Field("vector", length=2),
+            "offsets": Field("vector", min_length=1, element=Field("vector", length=3)),
+        },
+        "twist": {
+            **_COMMON,
+            "angle_deg": num(required=True, min=-720, max=720, doc="a number [deg]"),
+            "axis": _AXIS,
+        },
+        "resist": {
+            **_COMMON,
+            "angle_deg": num(required=True, min=-720, max=720, doc="a number [deg]"),
+            "axis": _AXIS,
+        },
         "push": {**_COMMON, "force": vec(3, required=True, doc="3 numbers [N]")},
     },
 )
 
-CHECKS = Field("table", children={
-    "settle_s": num(min=0), "reach_s": num(min=0), "max_distance_m": num(min=0),
-    "max_lag_deg": num(min=0), "perpendicular_deg": num(min=0), "min_free_deg": num(min=0),
-    "min_travel_deg": num(min=0), "min_force_n": num(min=0),
-})
+CHECKS = Field(
+    "table",
+    children={
+        "settle_s": num(min=0),
+        "reach_s": num(min=0),
+        "max_distance_m": num(min=0),
+        "max_lag_deg": num(min=0),
+        "perpendicular_deg": num(min=0),
+        "min_free_deg": num(min=0),
+        "min_travel_deg": num(min=0),
+        "min_force_n": num(min=0),
+    },
+)
 
-SCENARIO = Field("table", children={
-    "name": Field("string", required=True, doc="a string"),
-    "description": Field("string", default=""),
-    "duration_s": num(required=True, min=0, min_exclusive=True, max=3600, doc="a number [s] > 0"),
-    "seed": Field("integer", default=0, min=0, max=2**63 - 1),
-    "device": DEVICE,
-    "mechanism": MECHANISM,
-    "controller": CONTROLLER,
-    "physics": PHYSICS,
-    "sensors": SENSORS,
-    "initial": INITIAL,
-    "human": HUMAN,
-    "intent": INTENT,
-    "checks": CHECKS,
-})
+SCENARIO = Field(
+    "table",
+    children={
+        "name": Field("string", required=True, doc="a string"),
+        "description": Field("string", default=""),
+        "duration_s": num(
+            required=True, min=0, min_exclusive=True, max=3600, doc="a number [s] > 0"
+        ),
+        "seed": Field("integer", default=0, min=0, max=2**63 - 1),
+        "device": DEVICE,
+        "mechanism": MECHANISM,
+        "controller": CONTROLLER,
+        "physics": PHYSICS,
+        "sensors": SENSORS,
+        "initial": INITIAL,
+        "human": HUMAN,
+        "intent": INTENT,
+        "checks": CHECKS,
+    },
+)

@@ -69,7 +69,7 @@ class Field:
     def _number(self, path: str, v: Any) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise ScenarioError(
-                f"{path}: expected a number{' ' + self._range_text() if self._range_text() else ''}, "
+                f"{path}: expected a number{' ' + rng if (rng := self._range_text()) else ''}, "
                 f"got {type(v).__name__} {_show(v)}"
             )
         self._check_range(path, float(v))
@@ -81,12 +81,16 @@ class Field:
             return self._number(path, v)
         if k == "integer":
             if isinstance(v, bool) or not isinstance(v, int):
-                raise ScenarioError(f"{path}: expected an integer, got {type(v).__name__} {_show(v)}")
+                raise ScenarioError(
+                    f"{path}: expected an integer, got {type(v).__name__} {_show(v)}"
+                )
             self._check_range(path, v)
             return int(v)
         if k == "bool":
             if not isinstance(v, bool):
-                raise ScenarioError(f"{path}: expected true or false, got {type(v).__name__} {_show(v)}")
+                raise ScenarioError(
+                    f"{path}: expected true or false, got {type(v).__name__} {_show(v)}"
+                )
             return v
         if k == "string":
             if not isinstance(v, str):
@@ -116,17 +120,22 @@ class Field:
             if isinstance(v, list):
                 out = Field("vector", length=3).check(path, v)
                 if math.hypot(*out) < 1e-9:
-                    raise ScenarioError(f"{path}: value {_show(v)} is out of range; expected a non-zero vector")
+                    raise ScenarioError(
+                        f"{path}: value {_show(v)} is out of range; expected a non-zero vector"
+                    )
                 return out
             raise ScenarioError(
-                f"{path}: expected one of {', '.join(repr(c) for c in self.choices or ())} or 3 numbers, "
+                f"{path}: expected one of {', '.join(repr(c) for c in self.choices or ())} "
+                "or 3 numbers, "
                 f"got {type(v).__name__} {_show(v)}"
             )
         if k == "table":
             return check_table(path, v, self)
         if k == "tables":
             if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
-                raise ScenarioError(f"{path}: expected an array of tables ([[{path}]]), got {_show(v)}")
+                raise ScenarioError(
+                    f"{path}: expected an array of tables ([[{path}]]), got {_show(v)}"
+                )
             return [check_table(f"{path}[{i}]", x, self) for i, x in enumerate(v)]
         raise AssertionError(k)
 
@@ -140,8 +149,10 @@ def check_table(path: str, v: Any, spec: Field) -> dict:
         assert key is not None
         kpath = f"{path}.{key}" if path else key
         if key not in v:
-            raise ScenarioError(f"{kpath}: missing required field; expected one of "
-                                + ", ".join(repr(c) for c in spec.variants))
+            raise ScenarioError(
+                f"{kpath}: missing required field; expected one of "
+                + ", ".join(repr(c) for c in spec.variants)
+            )
         name = Field("string", choices=tuple(spec.variants)).check(kpath, v[key])
         children[key] = Field("string", required=True, choices=tuple(spec.variants))
         children.update(spec.variants[name])

@@ -75,8 +75,9 @@ class HandTarget:
 class Intent:
     """The intent timeline: call `update(t, T_handle)` once per control cycle, in order."""
 
-    def __init__(self, segments: list[dict], hand: HandImpedance, mechanism, T0: np.ndarray,
-                 period_s: float):
+    def __init__(
+        self, segments: list[dict], hand: HandImpedance, mechanism, T0: np.ndarray, period_s: float
+    ):
         self.segments = sorted(segments, key=lambda s: s["start_s"])
         self.hand = hand
         self.mechanism = mechanism
@@ -148,7 +149,10 @@ class Intent:
         return p, R
 
     def update(self, t: float, T_handle: np.ndarray) -> HandTarget:
-        while self.active + 1 < len(self.segments) and t >= self.segments[self.active + 1]["start_s"] - 1e-12:
+        while (
+            self.active + 1 < len(self.segments)
+            and t >= self.segments[self.active + 1]["start_s"] - 1e-12
+        ):
             self._start(self.active + 1, T_handle)
         force = np.zeros(3)
         if self.active >= 0:
@@ -184,7 +188,8 @@ class Intent:
         self._prev_p, self._prev_R = self.p_a.copy(), self.R_a.copy()
         h = self.hand
         return HandTarget(
-            p=self.p_a, R=self.R_a,
+            p=self.p_a,
+            R=self.R_a,
             v=np.zeros(3) if self.trans_passive else v,
             w=np.zeros(3) if self.rot_passive else w,
             k_t=0.0 if self.trans_passive else float(self.k_t),

@@ -44,14 +44,23 @@ def make_device(d: dict):
     """A vm device from a scenario's [device] table; returns (device, base pose or None)."""
     if d["type"] == "PhantomOmni":
         return (
-            vm.PhantomOmni(l1=d["l1"], l2=d["l2"], max_force=d["max_force"],
-                           motor_torque_limit=d["motor_torque_limit"]),
+            vm.PhantomOmni(
+                l1=d["l1"],
+                l2=d["l2"],
+                max_force=d["max_force"],
+                motor_torque_limit=d["motor_torque_limit"],
+            ),
             None,
         )
     base = translation(d["base_position"])
     return (
-        vm.Planar3R(link1=d["link1"], link2=d["link2"], base=base,
-                    torque_limit=d["torque_limit"], max_force=d["max_force"]),
+        vm.Planar3R(
+            link1=d["link1"],
+            link2=d["link2"],
+            base=base,
+            torque_limit=d["torque_limit"],
+            max_force=d["max_force"],
+        ),
         base,
     )
 
@@ -70,8 +79,10 @@ def make_mechanism(m: dict):
 
 
 def controller_kwargs(c: dict) -> dict:
-    kw = {k: c[k] for k in ("law", "error_velocity", "period_s", "ramp_time_s", "max_force",
-                            "max_iterations")}
+    kw = {
+        k: c[k]
+        for k in ("law", "error_velocity", "period_s", "ramp_time_s", "max_force", "max_iterations")
+    }
     for k in ("kp", "kv", "w_a", "w_e", "w_e_star"):
         if k in c:
             kw[k] = np.asarray(c[k], dtype=float)
@@ -93,8 +104,16 @@ def device_physics(scenario_device: dict) -> DeviceModel:
 def _seeds(device) -> list[np.ndarray]:
     if isinstance(device, vm.PhantomOmni):
         arm = [0.0, 0.4, 0.2]
-        return [np.array(arm + g) for g in ([-1.5, 0.3, 1.5], [1.5, 0.3, -1.5], [0, 0.3, 0],
-                                            [-1.5, 0.3, -1.5], [1.5, 0.3, 1.5])] + [device.home]
+        return [
+            np.array(arm + g)
+            for g in (
+                [-1.5, 0.3, 1.5],
+                [1.5, 0.3, -1.5],
+                [0, 0.3, 0],
+                [-1.5, 0.3, -1.5],
+                [1.5, 0.3, 1.5],
+            )
+        ] + [device.home]
     return [np.array([0.3, 1.5, -1.0]), np.array([-0.3, -1.5, 1.0]), device.home]
 
 
@@ -240,35 +259,66 @@ def _names(prefix: str, n: int) -> list[str]:
 def log_columns(n: int, m: int) -> list[str]:
     xyz = ["x", "y", "z"]
     return (
-        ["t"] + _names("q", n) + _names("dq", n) + _names("qm", n) + _names("dqm", n)
+        ["t"]
+        + _names("q", n)
+        + _names("dq", n)
+        + _names("qm", n)
+        + _names("dqm", n)
         + ["px", "py", "pz", "sx", "sy", "sz", "vx", "vy", "vz", "wx", "wy", "wz"]
         + ["fx", "fy", "fz", "mx", "my", "mz"]
-        + _names("tau", n) + _names("tau_motor", n)
+        + _names("tau", n)
+        + _names("tau_motor", n)
         + ["status", "ramp", "iterations", "iterations_star"]
-        + _names("theta", m) + _names("theta_star", m)
-        + _names("e", 6) + _names("e_dot", 6) + _names("e_star", 6) + _names("e_star_dot", 6)
-        + _names("f_null", 6) + _names("f_range", 6)
+        + _names("theta", m)
+        + _names("theta_star", m)
+        + _names("e", 6)
+        + _names("e_dot", 6)
+        + _names("e_star", 6)
+        + _names("e_star_dot", 6)
+        + _names("f_null", 6)
+        + _names("f_range", 6)
         + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz"]
         + ["ax", "ay", "az", "segment"]
         + ["dist", "arm_pos_angle", "arm_stylus_angle"]
-        + [f"ff1{c}" for c in xyz] + [f"ff2{c}" for c in xyz] + ["grip_twist"]
+        + [f"ff1{c}" for c in xyz]
+        + [f"ff2{c}" for c in xyz]
+        + ["grip_twist"]
     )
 
 
 UNITS = {
-    "t": "s", "q": "rad", "dq": "rad/s", "qm": "rad (measured)", "dqm": "rad/s (estimated)",
-    "px": "m", "sx": "unit stylus direction", "vx": "m/s", "wx": "rad/s",
-    "fx": "N (device on handle)", "mx": "N·m (device on handle)",
-    "tau": "N·m (controller command)", "tau_motor": "N·m (motor output incl. gravity compensation, saturated)",
-    "status": "bits (virtmech.status)", "ramp": "1", "theta": "rad (nearest placement, W_e)",
-    "theta_star": "rad (un-powered placement, W_e*)", "e": "m x3, rad x3", "e_dot": "m/s, rad/s",
-    "e_star": "m, rad", "e_star_dot": "m/s, rad/s", "f_null": "N, N·m (eq. 26 null-space part)",
-    "f_range": "N, N·m (eq. 26 range-space part)", "fhx": "N (hand on handle)",
-    "mhx": "N·m (hand on handle)", "ax": "m (hand anchor)", "segment": "intent segment index",
+    "t": "s",
+    "q": "rad",
+    "dq": "rad/s",
+    "qm": "rad (measured)",
+    "dqm": "rad/s (estimated)",
+    "px": "m",
+    "sx": "unit stylus direction",
+    "vx": "m/s",
+    "wx": "rad/s",
+    "fx": "N (device on handle)",
+    "mx": "N·m (device on handle)",
+    "tau": "N·m (controller command)",
+    "tau_motor": "N·m (motor output incl. gravity compensation, saturated)",
+    "status": "bits (virtmech.status)",
+    "ramp": "1",
+    "theta": "rad (nearest placement, W_e)",
+    "theta_star": "rad (un-powered placement, W_e*)",
+    "e": "m x3, rad x3",
+    "e_dot": "m/s, rad/s",
+    "e_star": "m, rad",
+    "e_star_dot": "m/s, rad/s",
+    "f_null": "N, N·m (eq. 26 null-space part)",
+    "f_range": "N, N·m (eq. 26 range-space part)",
+    "fhx": "N (hand on handle)",
+    "mhx": "N·m (hand on handle)",
+    "ax": "m (hand anchor)",
+    "segment": "intent segment index",
     "dist": "m (distance from the mechanism's path)",
     "arm_pos_angle": "rad (PlanarArm: angle of the handle position about the pivot)",
     "arm_stylus_angle": "rad (PlanarArm: mechanism angle the stylus points for)",
-    "ff1x": "N (finger 1 on handle)", "ff2x": "N (finger 2 on handle)",
+    "ff1x": "N (finger 1 on handle)",
+    "ff2x": "N (finger 2 on handle)",
     "grip_twist": "N·m (moment about the stylus the grip adds)",
 }
 
@@ -302,11 +352,19 @@ def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
     contacts = S["human"]["grip_contacts"]
     phys = device_physics(S["device"])
     gravity_on = S["physics"]["gravity"]
-    g_world = np.array([0.0, -9.81, 0.0]) if isinstance(device, vm.PhantomOmni) else np.array([0.0, 0.0, -9.81])
+    g_world = (
+        np.array([0.0, -9.81, 0.0])
+        if isinstance(device, vm.PhantomOmni)
+        else np.array([0.0, 0.0, -9.81])
+    )
     nsub = int(round(S["physics"]["rate_hz"] * T_ctrl))
     built: BuiltModel = build_mjcf(
-        device, params=phys, hand=HandBody(human.mass_kg, human.inertia), base=base,
-        gravity=g_world if gravity_on else np.zeros(3), timestep=T_ctrl / nsub,
+        device,
+        params=phys,
+        hand=HandBody(human.mass_kg, human.inertia),
+        base=base,
+        gravity=g_world if gravity_on else np.zeros(3),
+        timestep=T_ctrl / nsub,
     )
     model = compile_model(built)
     data = mujoco.MjData(model)
@@ -319,7 +377,9 @@ def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
     mujoco.mj_forward(model, data)
 
     grav_comp = gravity_on and S["physics"]["gravity_compensation"]
-    comp_bodies = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in built.device_bodies]
+    comp_bodies = [
+        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in built.device_bodies
+    ]
     body_mass = model.body_mass.copy()
     jacp = np.zeros((3, model.nv))
 
@@ -379,14 +439,37 @@ def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
         motor = np.zeros(n)
         motor[act_idx] = data.actuator_force
         motor_dev = motor  # actuators act on device joints directly
-        log[k] = np.concatenate((
-            [t], q, dq, qm, dqm, T_h[:3, 3], T_h[:3, 2], twist0,
-            wrench, tau, motor_dev,
-            [out.status, out.ramp, out.iterations, out.iterations_star],
-            out.theta, out.theta_star, out.error, out.error_dot, out.error_star,
-            out.error_star_dot, out.wrench_null, out.wrench_range, wrench_h0,
-            target.p, [target.segment], [dist, a_pos, a_sty], F1, F2, [mz],
-        ))
+        log[k] = np.concatenate(
+            (
+                [t],
+                q,
+                dq,
+                qm,
+                dqm,
+                T_h[:3, 3],
+                T_h[:3, 2],
+                twist0,
+                wrench,
+                tau,
+                motor_dev,
+                [out.status, out.ramp, out.iterations, out.iterations_star],
+                out.theta,
+                out.theta_star,
+                out.error,
+                out.error_dot,
+                out.error_star,
+                out.error_star_dot,
+                out.wrench_null,
+                out.wrench_range,
+                wrench_h0,
+                target.p,
+                [target.segment],
+                [dist, a_pos, a_sty],
+                F1,
+                F2,
+                [mz],
+            )
+        )
         if progress and k % 50 == 0:
             bar.update(t)
     wall = time.perf_counter() - wall0
@@ -398,19 +481,32 @@ def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
         "device": device.to_dict(),
         "device_physics": phys.to_dict(),
         "mechanism": mech.to_dict(),
-        "controller_model": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in ctrl.model.items()},
+        "controller_model": {
+            k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in ctrl.model.items()
+        },
         "human": human.to_dict(),
         "grip_contacts": list(contacts),
         "sensors": SensorSettings(**S["sensors"]).to_dict(),
-        "physics": {"timestep_s": T_ctrl / nsub, "substeps": nsub, "gravity": (g_world if gravity_on else np.zeros(3)).tolist(),
-                    "gravity_compensation": grav_comp, "integrator": "implicitfast"},
+        "physics": {
+            "timestep_s": T_ctrl / nsub,
+            "substeps": nsub,
+            "gravity": (g_world if gravity_on else np.zeros(3)).tolist(),
+            "gravity_compensation": grav_comp,
+            "integrator": "implicitfast",
+        },
         "initial_q": q0.tolist(),
         "seed": seed,
         "versions": versions(),
         "mjcf": built.xml,
     }
-    return SimResult(scenario=scenario, columns=columns, log=log, sim_time_s=(N - 1) * T_ctrl,
-                     wall_time_s=wall, info=info)
+    return SimResult(
+        scenario=scenario,
+        columns=columns,
+        log=log,
+        sim_time_s=(N - 1) * T_ctrl,
+        wall_time_s=wall,
+        info=info,
+    )
 
 
 def versions() -> dict:
@@ -418,5 +514,9 @@ def versions() -> dict:
 
     import mujoco
 
-    return {"virtmech": vm.__version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
-            "python": platform.python_version()}
+    return {
+        "virtmech": vm.__version__,
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }

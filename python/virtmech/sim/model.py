@@ -228,8 +228,9 @@ def build_mjcf(
     lines = [
         f'<mujoco model="{dtype}">',
         '  <compiler angle="radian" autolimits="true"/>',
-        f'  <option timestep="{_f(timestep)}" gravity="{_fmt(gravity)}" integrator="implicitfast"/>',
-        "  <default><geom contype=\"0\" conaffinity=\"0\" rgba=\"0.6 0.6 0.65 1\"/></default>",
+        f'  <option timestep="{_f(timestep)}" gravity="{_fmt(gravity)}" '
+        'integrator="implicitfast"/>',
+        '  <default><geom contype="0" conaffinity="0" rgba="0.6 0.6 0.65 1"/></default>',
         "  <worldbody>",
     ]
     indent = "    "
@@ -261,16 +262,16 @@ def build_mjcf(
             lines.append(f'{ind}<geom type="cylinder" size="0.02 0.01" euler="1.5708 0 0"/>')
         elif i <= last_arm and L > 1e-9:
             lines.append(f"{ind}{_inertial(mass, seg / 2, _rod_inertia(mass, L))}")
-            lines.append(
-                f'{ind}<geom type="capsule" fromto="0 0 0 {_fmt(seg)}" size="0.006"/>'
-            )
+            lines.append(f'{ind}<geom type="capsule" fromto="0 0 0 {_fmt(seg)}" size="0.006"/>')
         elif i < n - 1:
             lines.append(f"{ind}{_inertial(mass, [0, 0, 0], [1e-6, 1e-6, 1e-6])}")
         else:
             # the stylus body: pen mass along the stylus, the handle site, the hand body
             z = H[:3, 2]
             com = H[:3, 3] + params.stylus_com * z
-            lines.append(f"{ind}{_inertial(params.stylus_mass, com, _rod_inertia(params.stylus_mass, 0.12))}")
+            lines.append(
+                f"{ind}{_inertial(params.stylus_mass, com, _rod_inertia(params.stylus_mass, 0.12))}"
+            )
             a, b = H[:3, 3] - 0.09 * z, H[:3, 3] + 0.03 * z
             lines.append(
                 f'{ind}<geom type="capsule" fromto="{_fmt(a)} {_fmt(b)}" size="0.005" '

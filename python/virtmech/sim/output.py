@@ -24,8 +24,9 @@ def _unit(col: str) -> str:
 
 def write_log_csv(result: SimResult, path: Path) -> None:
     """log.csv: a header of column names, then one row per control cycle ('%.10g')."""
-    np.savetxt(path, result.log, delimiter=",", header=",".join(result.columns), comments="",
-               fmt="%.10g")
+    np.savetxt(
+        path, result.log, delimiter=",", header=",".join(result.columns), comments="", fmt="%.10g"
+    )
 
 
 def _jsonable(x):
@@ -48,23 +49,25 @@ def _jsonable(x):
 def run_json(result: SimResult) -> dict:
     info = dict(result.info)
     mjcf = info.pop("mjcf", None)
-    return _jsonable({
-        "name": result.scenario.name,
-        "scenario": result.scenario.to_dict(),
-        "scenario_source": result.scenario.source,
-        "mechanism": info.pop("mechanism"),
-        "device": info.pop("device"),
-        "versions": info.pop("versions"),
-        "seed": info.pop("seed"),
-        "sim_time_s": result.sim_time_s,
-        "wall_time_s": result.wall_time_s,
-        "cycles": result.n_cycles,
-        "columns": result.columns,
-        "units": {c: _unit(c) for c in result.columns},
-        "metrics": metrics(result),
-        **info,
-        "mjcf": mjcf,
-    })
+    return _jsonable(
+        {
+            "name": result.scenario.name,
+            "scenario": result.scenario.to_dict(),
+            "scenario_source": result.scenario.source,
+            "mechanism": info.pop("mechanism"),
+            "device": info.pop("device"),
+            "versions": info.pop("versions"),
+            "seed": info.pop("seed"),
+            "sim_time_s": result.sim_time_s,
+            "wall_time_s": result.wall_time_s,
+            "cycles": result.n_cycles,
+            "columns": result.columns,
+            "units": {c: _unit(c) for c in result.columns},
+            "metrics": metrics(result),
+            **info,
+            "mjcf": mjcf,
+        }
+    )
 
 
 def write_run(result: SimResult, out_dir: str | Path) -> Path:

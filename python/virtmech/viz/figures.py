@@ -36,7 +36,7 @@ def _mechanism_plane(result):
     return None, None, None
 
 
-def _snapshot_indices(result, count: int = 8) -> np.ndarray:
+def _snapshot_indices(result, count: int = 6) -> np.ndarray:
     """Cycles to draw: evenly spaced in "activity" (handle travel plus stylus turning, times
     the probe length), so that fast phases get as many snapshots as slow ones; plus the
     first and last cycles and the cycle of the largest force."""
@@ -45,7 +45,9 @@ def _snapshot_indices(result, count: int = 8) -> np.ndarray:
     S = result.cols("sx", "sy", "sz")
     _, _, L = _mechanism_plane(result)
     L = L or 0.08
-    step = np.linalg.norm(np.diff(P, axis=0), axis=1) + L * np.linalg.norm(np.diff(S, axis=0), axis=1)
+    step = np.linalg.norm(np.diff(P, axis=0), axis=1) + L * np.linalg.norm(
+        np.diff(S, axis=0), axis=1
+    )
     act = np.concatenate([[0.0], np.cumsum(step)])
     idx = {0, n - 1}
     if act[-1] > 1e-6:
@@ -89,14 +91,20 @@ def plane_figure(result, path: str | Path) -> None:
     fmax = max(float(np.linalg.norm(F, axis=1).max()), 1e-9)
     if resist:
         fmax = max(fmax, float(np.linalg.norm(F1, axis=1).max()))
-    scale = 0.45 * L / fmax  # m per N
+    scale = 0.35 * L / max(fmax, 1.0)  # m per N: small forces look small
 
-    fig, ax = plt.subplots(figsize=(7.0, 6.2), dpi=110)
+    fig, ax = plt.subplots(figsize=(7.0, 7.0), dpi=110)
     if pivot is not None:
         a = np.linspace(0, 2 * np.pi, 400)
         pc = uv(pivot)[0]
-        ax.plot(pc[0] + L * np.cos(a), pc[1] + L * np.sin(a), ls="--", color="0.6", lw=1,
-                label="constraint circle (virtual mechanism path)")
+        ax.plot(
+            pc[0] + L * np.cos(a),
+            pc[1] + L * np.sin(a),
+            ls="--",
+            color="0.6",
+            lw=1,
+            label="constraint circle (virtual mechanism path)",
+        )
         ax.plot(*pc, marker="o", color="k", ms=5)
         ax.annotate("pivot", pc, textcoords="offset points", xytext=(6, -12), fontsize=8)
     hp = uv(P)
@@ -114,23 +122,47 @@ def plane_figure(result, path: str | Path) -> None:
         f = uv(F[k])[0] * scale
         pu = uv(p)[0]
         if np.hypot(*f) > 1e-4 * L:
-            ax.annotate("", xy=pu + f, xytext=pu,
-                        arrowprops=dict(arrowstyle="-|>", color="crimson", lw=1.6))
+            ax.annotate(
+                "",
+                xy=pu + f,
+                xytext=pu,
+                arrowprops=dict(arrowstyle="-|>", color="crimson", lw=2.0),
+                zorder=6,
+            )
         if resist and k == idx[-1]:
-            for cnt, Ff, col in ((contacts[0], F1[k], "tab:blue"), (contacts[1], F2[k], "tab:green")):
+            for cnt, Ff, col in (
+                (contacts[0], F1[k], "tab:blue"),
+                (contacts[1], F2[k], "tab:green"),
+            ):
                 pc_ = uv(p + cnt * s)[0]
                 ff = uv(Ff)[0] * scale
                 if np.hypot(*ff) > 1e-4 * L:
-                    ax.annotate("", xy=pc_ + ff, xytext=pc_,
-                                arrowprops=dict(arrowstyle="-|>", color=col, lw=1.3))
-        ax.annotate(f"{t[k]:.2f} s", uv(p - grip_len * s)[0], fontsize=7, color=c,
-                    textcoords="offset points", xytext=(3, 3))
+                    ax.annotate(
+                        "",
+                        xy=pc_ + ff,
+                        xytext=pc_,
+                        arrowprops=dict(arrowstyle="-|>", color=col, lw=1.3),
+                    )
+        ax.annotate(
+            f"{t[k]:.2f} s",
+            uv(p - grip_len * s)[0],
+            fontsize=7,
+            color=c,
+            textcoords="offset points",
+            xytext=(3, 3),
+        )
     # legend proxies
     ax.plot([], [], color=cmap(0.5), lw=5, label="handle (thick) and virtual probe (dotted)")
     ax.annotate("", xy=(0, 0), xytext=(0, 0))
     ax.plot([], [], color="crimson", lw=1.6, label=f"device force (1 N = {scale * 1e3:.1f} mm)")
     if resist:
-        ax.plot([], [], color="tab:blue", lw=1.3, label="finger forces at the end (1: nearer the handle origin)")
+        ax.plot(
+            [],
+            [],
+            color="tab:blue",
+            lw=1.3,
+            label="finger forces at the end (1: nearer the handle origin)",
+        )
         ax.plot([], [], color="tab:green", lw=1.3, label="finger 2 force")
     # frame the action: the handle path, the drawn handles and the pivot
     pts = [hp, uv(P - grip_len * S)]
@@ -146,7 +178,7 @@ def plane_figure(result, path: str | Path) -> None:
     ax.set_ylabel(f"v [m]  (v = {np.round(v, 3).tolist()})")
     desc = result.scenario.data["description"].split(":")[0].strip()
     ax.set_title(f"{result.scenario.name}: {desc}\nplane seen face-on", fontsize=10)
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
     ax.grid(alpha=0.25)
     fig.tight_layout()
     fig.savefig(path)
@@ -175,28 +207,41 @@ def time_figure(result, path: str | Path) -> None:
         rad = w / np.linalg.norm(w, axis=1)[:, None]
         tan = np.cross(n, rad)
         ax.plot(t, np.sum(F * tan, axis=1), color="tab:orange", lw=0.9, label="along the path")
-        ax.plot(t, np.linalg.norm(F - np.sum(F * tan, axis=1)[:, None] * tan, axis=1),
-                color="tab:purple", lw=0.9, label="across the path")
+        ax.plot(
+            t,
+            np.linalg.norm(F - np.sum(F * tan, axis=1)[:, None] * tan, axis=1),
+            color="tab:purple",
+            lw=0.9,
+            label="across the path",
+        )
     fh = np.linalg.norm(result.cols("fhx", "fhy", "fhz"), axis=1)
     ax.plot(t, fh, color="0.5", lw=0.8, ls="--", label="|f| hand")
     ax.set_ylabel("force [N]")
-    ax.legend(fontsize=7, ncol=4, loc="upper right")
+    top = max(float(fmag.max()), float(fh.max()), 0.1)
+    ax.set_ylim(min(ax.get_ylim()[0], -0.05 * top), 1.35 * top)
+    ax.legend(fontsize=7, ncol=4, loc="upper right", framealpha=0.9)
     ax.grid(alpha=0.3)
     ax = axes[1]
-    ax.plot(t, result.col("dist") * 1e3, color="k")
+    floor = 1e-3  # [mm]: the plot's floor on its log scale
+    dmm = np.maximum(result.col("dist") * 1e3, floor)
+    ax.plot(t, dmm, color="k")
     ax.axhline(1.0, color="tab:red", ls="--", lw=0.8, label="1 mm")
     ax.set_ylabel("distance from\nthe circle [mm]")
-    ax.set_yscale("symlog", linthresh=0.1)
-    ax.legend(fontsize=7)
+    ax.set_yscale("log")
+    ax.set_ylim(floor, max(30.0, 2 * float(dmm.max())))
+    ax.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
     ax = axes[2]
     if pivot is not None:
         ax.plot(t, np.degrees(np.unwrap(result.col("arm_pos_angle"))), label="handle position")
-        ax.plot(t, np.degrees(np.unwrap(result.col("arm_stylus_angle"))), label="handle (stylus) angle")
+        sty = np.degrees(np.unwrap(result.col("arm_stylus_angle")))
+        ax.plot(t, sty, lw=3.5, alpha=0.45, label="handle (stylus) angle")
         ax.plot(t, np.degrees(result.col("theta_star0")), ls="--", label="mechanism θ* (eq. 25)")
         ax.plot(t, np.degrees(result.col("theta0")), ls=":", label="mechanism θ (nearest)")
         ax.set_ylabel("angle on the\ncircle [deg]")
-        ax.legend(fontsize=7, ncol=2)
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, hi + 0.35 * (hi - lo))
+        ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
     ax.grid(alpha=0.3)
     if resist:
         ax = axes[3]
@@ -206,10 +251,14 @@ def time_figure(result, path: str | Path) -> None:
         across = np.cross(np.asarray(normal if normal is not None else [0, 0, 1.0]), S)
         ax.plot(t, np.sum(F1 * across, axis=1), color="tab:blue", label="finger 1 (across stylus)")
         ax.plot(t, np.sum(F2 * across, axis=1), color="tab:green", label="finger 2 (across stylus)")
-        ax.plot(t, np.sum(F * across, axis=1), color="crimson", lw=0.8, label="device (across stylus)")
+        ax.plot(
+            t, np.sum(F * across, axis=1), color="crimson", lw=0.8, label="device (across stylus)"
+        )
         ax.axhline(0, color="0.5", lw=0.6)
         ax.set_ylabel("force [N]")
-        ax.legend(fontsize=7, ncol=3)
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, hi + 0.45 * (hi - lo))
+        ax.legend(fontsize=7, ncol=3, loc="upper right", framealpha=0.9)
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     fig.suptitle(f"{result.scenario.name}", fontsize=10)

@@ -41,7 +41,8 @@ def write_index(out_dir: str | Path, entries: list[dict], title: str = "virtmech
             f'<section id="{html.escape(e["name"])}"><h2>{html.escape(e["name"])}</h2>'
             f"<p>{html.escape(e['description'])}</p>"
             f'<p><a href="{d}/log.csv">log.csv</a> · <a href="{d}/run.json">run.json</a></p>'
-            f'<div class="figs"><img src="{d}/plane.png" alt="{d} plane"><img src="{d}/time.png" alt="{d} time"></div>'
+            f'<div class="figs"><img src="{d}/plane.png" alt="{d} plane">'
+            f'<img src="{d}/time.png" alt="{d} time"></div>'
             "</section>"
         )
     page = f"""<!doctype html>
@@ -58,9 +59,9 @@ section {{ margin-top: 2.5em; border-top: 1px solid #ddd; }}
 <p>The paper's Figs. 9–12 (Luecke &amp; Beckman, virtual mechanisms for under-actuated haptic
 devices) simulated in MuJoCo on the PHANTOM Omni and on the Planar3R. Metrics: summary.json.</p>
 <table><tr><th>scenario</th>{head}</tr>
-{''.join(rows)}
+{"".join(rows)}
 </table>
-{''.join(sections)}
+{"".join(sections)}
 </body></html>
 """
     path = out / "index.html"
