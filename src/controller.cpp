@@ -26,6 +26,67 @@ Vector6 checked_weights(const std::string& name, const Vector6& w) {
   return w;
 }
 
+// The range-space filter P(W) = W J (J^T W J)^+ J^T (eq. 5) applied to wrenches, W diagonal.
+// With S = W^1/2 J, S (S^T S)^+ = (S S^T)^+ S, so equally P(W) x = W^1/2 G^+ W^1/2 J J^T x
+// with G = S S^T restricted to the k task axes of non-zero weight. J^T W J (m x m) and G
+// (k x k) have the same non-zero eigenvalues, hence the same pseudo-inverse cut: the smaller
+// one is factored (for the Omni, k = 3 forces against a 5-joint probe).
+class RangeFilter {
+ public:
+  RangeFilter(const Jacobian& J, const Vector6& w) noexcept : J_(J) {
+    const int m = static_cast<int>(J.cols());
+    for (int i = 0; i < 6; ++i) {
+      if (w[i] > 0.0) {
+        axes_[k_] = i;
+        sqrt_w_[k_] = std::sqrt(w[i]);
+        ++k_;
+      }
+    }
+    dual_ = k_ < m;
+    if (dual_) {
+      S_.resize(k_, m);
+      for (int r = 0; r < k_; ++r) S_.row(r) = sqrt_w_[r] * J.row(axes_[r]);
+      JointMatrix G(k_, k_);
+      G.noalias() = S_ * S_.transpose();
+      symmetric_pinv(G, Gp_);
+    } else {
+      WJ_.noalias() = w.asDiagonal() * J;
+      JointMatrix H(m, m);
+      H.noalias() = J.transpose() * WJ_;
+      symmetric_pinv(H, Gp_);
+    }
+  }
+
+  /// P(W) x.
+  Vector6 apply(const Vector6& x) const noexcept {
+    JointVector u(J_.cols());
+    u.noalias() = J_.transpose() * x;
+    Vector6 out;
+    if (dual_) {
+      JointVector v(k_), y(k_);
+      v.noalias() = S_ * u;
+      y.noalias() = Gp_ * v;
+      out.setZero();
+      for (int r = 0; r < k_; ++r) out[axes_[r]] = sqrt_w_[r] * y[r];
+    } else {
+      JointVector y(J_.cols());
+      y.noalias() = Gp_ * u;
+      out.noalias() = WJ_ * y;
+    }
+    return out;
+  }
+
+ private:
+  const Jacobian& J_;
+  std::array<int, 6> axes_{};
+  std::array<double, 6> sqrt_w_{};
+  int k_ = 0;
+  bool dual_ = false;
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, 6, kMaxDof> S_;
+  Jacobian WJ_;
+  JointMatrix Gp_;
+};
+
 }  // namespace
 
 ControllerModel make_controller_model(const Device& device, const Mechanism& mechanism,
@@ -219,9 +280,14 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   v_R.noalias() = J_R * dqv;
 
   // nearest placement, W_e (eqs. 18-20)
+  // warm start: the last placement moved on by its last change (placements follow the
+  // handle smoothly, so this starts second-order close to the answer)
   const TrackOptions& opts = first_ ? M.track_initial : M.track;
+  JointVector theta0 = theta_;
+  if (!first_) theta0 += theta_ - theta_prev_;
+  theta_prev_ = theta_;
   JointVector theta_new;
-  const TrackResult r = track(mech, out.handle_pose, theta_, M.w_e_effective, opts, theta_new);
+  const TrackResult r = track(mech, out.handle_pose, theta0, M.w_e_effective, opts, theta_new);
   theta_ = theta_new;
   out.theta = theta_;
   out.iterations = r.iterations;
@@ -234,23 +300,17 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);  // eq. 7
 
   // the filters share W_A: P F = W_A J_V (J_V^T W_A J_V)^+ J_V^T F
-  const int m = mech.dof();
-  const Jacobian WJ_A = M.w_a.asDiagonal() * J_V;
-  JointMatrix H_A(m, m);
-  H_A.noalias() = J_V.transpose() * WJ_A;
-  JointMatrix H_Ap;
-  symmetric_pinv(H_A, H_Ap);
-  JointVector tmp(m), tmp2(m);
-  tmp.noalias() = J_V.transpose() * F;
-  tmp2.noalias() = H_Ap * tmp;
-  out.wrench_null.noalias() = -WJ_A * tmp2;
-  out.wrench_null += F;  // N(W_A) F (eqs. 9, 11)
+  const RangeFilter P_A(J_V, M.w_a);
+  out.wrench_null = F - P_A.apply(F);  // N(W_A) F (eqs. 9, 11)
 
   // un-powered placement, W_e* (eq. 25), and the range-space term of eq. 26
   if (M.under_actuated_term) {
     if (first_) theta_star_ = theta_;
+    theta0 = theta_star_;
+    if (!first_) theta0 += theta_star_ - theta_star_prev_;
+    theta_star_prev_ = theta_star_;
     const TrackResult rs =
-        track(mech, out.handle_pose, theta_star_, M.w_e_star_effective, opts, theta_new);
+        track(mech, out.handle_pose, theta0, M.w_e_star_effective, opts, theta_new);
     theta_star_ = theta_new;
     out.iterations_star = rs.iterations;
     out.residual_star = rs.residual;
@@ -260,9 +320,7 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
     out.error_star = pose_error(out.mechanism_pose_star, out.handle_pose);
     placement_rate(J_Vs, M.w_e_star_effective, v_R, out.error_star_dot);
     const Vector6 Fs = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
-    tmp.noalias() = J_V.transpose() * Fs;
-    tmp2.noalias() = H_Ap * tmp;
-    out.wrench_range.noalias() = WJ_A * tmp2;  // P(W_A) F*
+    out.wrench_range = P_A.apply(Fs);  // P(W_A) F*
   } else {
     theta_star_ = theta_;
     out.iterations_star = 0;

@@ -2,10 +2,34 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "small_cholesky.hpp"
+
 namespace virtmech {
+
+namespace {
+
+// A^-1 by Cholesky when that is provably the pseudo-inverse: A positive definite with
+// lambda_min / lambda_max > kPinvTolerance, i.e. no eigenvalue the eigen-decomposition would
+// cut. lambda_max <= |A|_F and 1 / lambda_min <= |A^-1|_F, so |A|_F |A^-1|_F below (half)
+// 1 / kPinvTolerance is a sufficient test, pessimistic by at most the dimension.
+bool inverse_if_well_conditioned(const JointMatrix& A, JointMatrix& A_inv) noexcept {
+  JointMatrix L = A;
+  if (!detail::cholesky_in_place(L)) return false;
+  detail::cholesky_inverse(L, A_inv);
+  const double kappa = A.norm() * A_inv.norm();  // Frobenius norms
+  return kappa < 0.5 / kPinvTolerance;           // false for NaN too
+}
+
+}  // namespace
 
 void symmetric_pinv(const JointMatrix& A, JointMatrix& A_pinv) noexcept {
   const Eigen::Index n = A.rows();
+  if (n == 1) {
+    A_pinv.resize(1, 1);
+    A_pinv(0, 0) = A(0, 0) > 0.0 ? 1.0 / A(0, 0) : 0.0;  // the eigen rule for 1 x 1
+    return;
+  }
+  if (n > 1 && inverse_if_well_conditioned(A, A_pinv)) return;
   A_pinv.setZero(n, n);
   if (n == 0) return;
   Eigen::SelfAdjointEigenSolver<JointMatrix> eig(A);  // fixed capacity: no heap

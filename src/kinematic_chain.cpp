@@ -10,15 +10,54 @@ namespace virtmech {
 
 namespace {
 
-// pose of the joint's motion for value x, in the joint frame
-inline Pose joint_motion(const Joint& j, double x) noexcept {
-  Pose M = Pose::Identity();
-  if (j.type == JointType::kRevolute) {
-    M.linear() = Eigen::AngleAxisd(x, j.axis).toRotationMatrix();
+// the frame (R, p) walked along the chain; products are written out for the common cases
+// (origins without rotation, axes along a coordinate axis) since they are the servo
+// cycle's inner loop
+struct Frame {
+  Eigen::Matrix3d R;
+  Eigen::Vector3d p;
+};
+
+inline void apply(Frame& f, const Pose& T) noexcept {
+  f.p.noalias() += f.R * T.translation();
+  f.R = f.R * T.linear();
+}
+
+// f <- f * origin
+inline void apply_origin(Frame& f, const Pose& origin, bool translation_only) noexcept {
+  if (translation_only) {
+    f.p.noalias() += f.R * origin.translation();
   } else {
-    M.translation() = x * j.axis;
+    apply(f, origin);
   }
-  return M;
+}
+
+// f <- f * motion(x): rotation about, or translation along, the joint axis
+inline void apply_motion(Frame& f, const Joint& j, int axis_index, double axis_sign,
+                         double x) noexcept {
+  if (j.type == JointType::kPrismatic) {
+    f.p.noalias() += (x * f.R) * j.axis;
+    return;
+  }
+  if (axis_index < 0) {
+    f.R = f.R * Eigen::AngleAxisd(x, j.axis).toRotationMatrix();
+    return;
+  }
+  // rotation about a coordinate axis k mixes the two other columns of R
+  const double a = axis_sign * x;
+  const double c = std::cos(a), s = std::sin(a);
+  const int u = (axis_index + 1) % 3, v = (axis_index + 2) % 3;
+  const Eigen::Vector3d ru = f.R.col(u), rv = f.R.col(v);
+  f.R.col(u) = c * ru + s * rv;
+  f.R.col(v) = c * rv - s * ru;
+}
+
+inline Frame start(const Pose& base) noexcept { return Frame{base.linear(), base.translation()}; }
+
+inline void finish(const Frame& f, const Pose& handle, Pose& T) noexcept {
+  T.translation().noalias() = f.p + f.R * handle.translation();
+  T.linear().noalias() = f.R * handle.linear();
+  T.makeAffine();
 }
 
 }  // namespace
@@ -52,6 +91,16 @@ KinematicChain::KinematicChain(const Pose& base, const std::vector<Joint>& joint
       throw std::invalid_argument(os.str());
     }
     joints_[static_cast<size_t>(i)] = j;
+    const size_t k = static_cast<size_t>(i);
+    axis_index_[k] = -1;
+    axis_sign_[k] = 1.0;
+    for (int a = 0; a < 3; ++a) {
+      if (std::abs(j.axis[a]) == 1.0) {
+        axis_index_[k] = a;
+        axis_sign_[k] = j.axis[a];
+      }
+    }
+    origin_translation_only_[k] = j.origin.linear().isIdentity(0.0);
   }
 }
 
@@ -60,12 +109,13 @@ std::vector<Joint> KinematicChain::joints() const {
 }
 
 void KinematicChain::forward(const double* q, Pose& T) const noexcept {
-  T = base_;
+  Frame f = start(base_);
   for (int i = 0; i < dof_; ++i) {
-    const Joint& j = joints_[static_cast<size_t>(i)];
-    T = T * j.origin * joint_motion(j, q[i]);
+    const size_t k = static_cast<size_t>(i);
+    apply_origin(f, joints_[k].origin, origin_translation_only_[k]);
+    apply_motion(f, joints_[k], axis_index_[k], axis_sign_[k], q[i]);
   }
-  T = T * handle_;
+  finish(f, handle_, T);
 }
 
 void KinematicChain::forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept {
@@ -73,15 +123,20 @@ void KinematicChain::forward_jacobian(const double* q, Pose& T, Jacobian& J) con
   // world axis and point of every joint, then the handle origin
   Eigen::Matrix<double, 3, kMaxDof> axes;
   Eigen::Matrix<double, 3, kMaxDof> points;
-  T = base_;
+  Frame f = start(base_);
   for (int i = 0; i < dof_; ++i) {
-    const Joint& j = joints_[static_cast<size_t>(i)];
-    T = T * j.origin;
-    axes.col(i) = T.linear() * j.axis;
-    points.col(i) = T.translation();
-    T = T * joint_motion(j, q[i]);
+    const size_t k = static_cast<size_t>(i);
+    const Joint& j = joints_[k];
+    apply_origin(f, j.origin, origin_translation_only_[k]);
+    if (axis_index_[k] >= 0) {
+      axes.col(i) = axis_sign_[k] * f.R.col(axis_index_[k]);
+    } else {
+      axes.col(i).noalias() = f.R * j.axis;
+    }
+    points.col(i) = f.p;
+    apply_motion(f, j, axis_index_[k], axis_sign_[k], q[i]);
   }
-  T = T * handle_;
+  finish(f, handle_, T);
   const Eigen::Vector3d p = T.translation();
   for (int i = 0; i < dof_; ++i) {
     const Eigen::Vector3d a = axes.col(i);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "small_cholesky.hpp"
 #include "virtmech/se3.hpp"
 
 namespace virtmech {
@@ -36,6 +37,11 @@ inline double cost_at(const Mechanism& m, const Pose& target, const JointVector&
   return e.dot(W.cwiseProduct(e));
 }
 
+// the secant extrapolation applies when the directional derivative kept between these
+// fractions of its value over a Gauss-Newton step (a linear convergence rate)
+constexpr double kSecantMinRatio = 0.1;
+constexpr double kSecantMaxRatio = 0.8;
+
 inline void clamp_to_limits(const KinematicChain& chain, JointVector& x) noexcept {
   for (int i = 0; i < chain.dof(); ++i) {
     x[i] = std::min(std::max(x[i], chain.joint(i).lower), chain.joint(i).upper);
@@ -59,11 +65,10 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
                       : options.max_step_prismatic * mechanism.length_scale();
   }
 
-  Eval ev, trial_ev;
+  Eval ev, trial_ev, extrapolated_ev;
   evaluate(mechanism, target, theta, weights, ev);
-  JointMatrix H(n, n);
-  JointVector delta(n), trial(n);
-  Eigen::LLT<JointMatrix> llt(n);
+  JointMatrix H(n, n), L(n, n);
+  JointVector delta(n), trial(n), extrapolated(n);
 
   for (int it = 0; it < options.max_iterations; ++it) {
     if (ev.g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
@@ -75,8 +80,13 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
     const Jacobian WJ = weights.asDiagonal() * ev.J;
     H.noalias() = ev.J.transpose() * WJ;
     H.diagonal().array() += options.damping * (H.trace() / n) + 1e-300;
-    llt.compute(H);
-    delta = llt.solve(ev.g);
+    L = H;
+    delta = ev.g;
+    if (detail::cholesky_in_place(L)) {
+      detail::cholesky_solve_in_place(L, delta);
+    } else {
+      delta = Eigen::LLT<JointMatrix>(H).solve(ev.g);  // not positive definite (NaN, ...)
+    }
     double scale = 1.0;
     for (int i = 0; i < n; ++i) {
       const double a = std::abs(delta[i]);
@@ -87,8 +97,11 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
     const double slope0 = ev.g.dot(delta);  // > 0: delta descends the weighted cost
 
     if (scale == 1.0 && delta.cwiseQuotient(step_cap).cwiseAbs().maxCoeff() < 1e-4) {
-      // near the solution cost differences are at rounding level: take the step, and if
-      // the directional derivative changed sign, go to its zero along delta (secant)
+      // near the solution cost differences are at rounding level: take the step, then go
+      // to the zero of the directional derivative along delta (secant) if it changed sign,
+      // or if it kept a good part of its value: Gauss-Newton then converges only linearly
+      // (a residual that cannot vanish, as a 5-joint mechanism held to a 6-D pose), and the
+      // secant extrapolation removes the slow component
       trial = theta + delta;
       clamp_to_limits(chain, trial);
       evaluate(mechanism, target, trial, weights, trial_ev);
@@ -97,6 +110,15 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
         trial = theta + (slope0 / (slope0 - slope1)) * delta;
         clamp_to_limits(chain, trial);
         evaluate(mechanism, target, trial, weights, trial_ev);
+      } else if (slope0 > 0.0 && slope1 >= kSecantMinRatio * slope0 &&
+                 slope1 <= kSecantMaxRatio * slope0) {
+        extrapolated = theta + (slope0 / (slope0 - slope1)) * delta;
+        clamp_to_limits(chain, extrapolated);
+        evaluate(mechanism, target, extrapolated, weights, extrapolated_ev);
+        if (std::abs(extrapolated_ev.g.dot(delta)) < slope1) {  // kept only if it helped
+          trial = extrapolated;
+          trial_ev = extrapolated_ev;
+        }
       }
     } else {
       // far from it the linearisation of eq. 16 is only local: backtrack on the cost

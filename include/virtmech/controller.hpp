@@ -144,6 +144,7 @@ class Controller {
   ControllerModel model_;
   // state
   JointVector theta_, theta_star_;
+  JointVector theta_prev_, theta_star_prev_;  // the placements one cycle earlier (warm start)
   bool first_ = true;
   long ramp_count_ = 0;
   double last_t_ = std::numeric_limits<double>::quiet_NaN();

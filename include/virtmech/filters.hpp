@@ -9,9 +9,10 @@ namespace virtmech {
 /// pseudo-inverse (relative to the largest eigenvalue).
 constexpr double kPinvTolerance = 1e-10;
 
-/// Moore-Penrose pseudo-inverse of a symmetric positive semi-definite matrix A (n x n),
-/// by eigen-decomposition; eigenvalues below kPinvTolerance * max eigenvalue count as 0.
-/// Allocation-free.
+/// Moore-Penrose pseudo-inverse of a symmetric positive semi-definite matrix A (n x n):
+/// eigenvalues below kPinvTolerance * max eigenvalue count as 0. Computed by Cholesky when
+/// A is provably conditioned well enough that no eigenvalue is cut (then A^+ = A^-1), else
+/// by eigen-decomposition. Allocation-free.
 void symmetric_pinv(const JointMatrix& A, JointMatrix& A_pinv) noexcept;
 
 /// Range-space filter P(W) = W J (J^T W J)^+ J^T (eq. 5), W diagonal (a 6-vector).

@@ -364,6 +364,12 @@ def np_track(m: NpChain, target: np.ndarray, theta0: np.ndarray, W: np.ndarray,
             if slope0 > 0.0 and slope1 < 0.0:
                 trial = np.clip(theta + (slope0 / (slope0 - slope1)) * delta, m.lower, m.upper)
                 tJ, tg, tcost = evaluate(trial)
+            elif slope0 > 0.0 and 0.1 * slope0 <= slope1 <= 0.8 * slope0:
+                # linear convergence: secant extrapolation along delta, kept if it helped
+                x = np.clip(theta + (slope0 / (slope0 - slope1)) * delta, m.lower, m.upper)
+                xJ, xg, xcost = evaluate(x)
+                if abs(float(xg @ delta)) < slope1:
+                    trial, tJ, tg, tcost = x, xJ, xg, xcost
         else:
             alpha, accepted = 1.0, False
             for _ in range(10):
@@ -401,6 +407,8 @@ class NpController:
         self.max_force, self.max_torque = md["max_force"], md["max_torque"]
         self.theta = mechanism.home.copy()
         self.theta_star = mechanism.home.copy()
+        self.theta_prev = self.theta.copy()
+        self.theta_star_prev = self.theta.copy()
         self.first = True
         self.ramp_count = 0
 
@@ -417,7 +425,10 @@ class NpController:
         dev, mech = self.dev, self.mech
         T_R, J_R = dev.forward_jacobian(q)
         v_R = J_R @ dq
-        self.theta, _ = np_track(mech, T_R, self.theta, self.w_e, iterations)
+        # warm start: the last placement moved on by its last change
+        start = self.theta if self.first else self.theta + (self.theta - self.theta_prev)
+        self.theta_prev = self.theta
+        self.theta, _ = np_track(mech, T_R, start, self.w_e, iterations)
         T_V, J_V = mech.forward_jacobian(self.theta)
         e = pose_error(T_V, T_R)
         F = self.kp * e + self.kv * self._rate(J_V, self.w_e, v_R)
@@ -427,8 +438,10 @@ class NpController:
         if self.under_actuated:
             if self.first:
                 self.theta_star = self.theta.copy()
-            self.theta_star, _ = np_track(mech, T_R, self.theta_star, self.w_e_star,
-                                          iterations_star)
+            start = (self.theta_star if self.first
+                     else self.theta_star + (self.theta_star - self.theta_star_prev))
+            self.theta_star_prev = self.theta_star
+            self.theta_star, _ = np_track(mech, T_R, start, self.w_e_star, iterations_star)
             T_s, J_s = mech.forward_jacobian(self.theta_star)
             e_s = pose_error(T_s, T_R)
             Fs = self.kp * e_s + self.kv * self._rate(J_s, self.w_e_star, v_R)
