@@ -7,6 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "track_detail.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/validate.hpp"
@@ -287,14 +288,14 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   if (!first_) theta0 += theta_ - theta_prev_;
   theta_prev_ = theta_;
   JointVector theta_new;
-  const TrackResult r = track(mech, out.handle_pose, theta0, M.w_e_effective, opts, theta_new);
+  Jacobian J_V;
+  const TrackResult r = detail::track(mech, out.handle_pose, theta0, M.w_e_effective, opts,
+                                      theta_new, out.mechanism_pose, J_V);
   theta_ = theta_new;
   out.theta = theta_;
   out.iterations = r.iterations;
   out.residual = r.residual;
   if (!r.converged) out.status |= status::kNotConverged;
-  Jacobian J_V;
-  mech.forward_jacobian(theta_.data(), out.mechanism_pose, J_V);
   out.error = pose_error(out.mechanism_pose, out.handle_pose);  // e = X_V - X_R (eq. 22)
   placement_rate(J_V, M.w_e_effective, v_R, out.error_dot);
   Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);  // eq. 7
@@ -309,14 +310,13 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
     theta0 = theta_star_;
     if (!first_) theta0 += theta_star_ - theta_star_prev_;
     theta_star_prev_ = theta_star_;
-    const TrackResult rs =
-        track(mech, out.handle_pose, theta0, M.w_e_star_effective, opts, theta_new);
+    Jacobian J_Vs;
+    const TrackResult rs = detail::track(mech, out.handle_pose, theta0, M.w_e_star_effective,
+                                         opts, theta_new, out.mechanism_pose_star, J_Vs);
     theta_star_ = theta_new;
     out.iterations_star = rs.iterations;
     out.residual_star = rs.residual;
     if (!rs.converged) out.status |= status::kNotConverged;
-    Jacobian J_Vs;
-    mech.forward_jacobian(theta_star_.data(), out.mechanism_pose_star, J_Vs);
     out.error_star = pose_error(out.mechanism_pose_star, out.handle_pose);
     placement_rate(J_Vs, M.w_e_star_effective, v_R, out.error_star_dot);
     const Vector6 Fs = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);

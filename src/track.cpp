@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "small_cholesky.hpp"
+#include "track_detail.hpp"
 #include "virtmech/se3.hpp"
 
 namespace virtmech {
@@ -53,6 +54,15 @@ inline void clamp_to_limits(const KinematicChain& chain, JointVector& x) noexcep
 TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVector& theta0,
                   const Vector6& weights, const TrackOptions& options,
                   JointVector& theta) noexcept {
+  Pose pose;
+  Jacobian J;
+  return detail::track(mechanism, target, theta0, weights, options, theta, pose, J);
+}
+
+TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
+                          const JointVector& theta0, const Vector6& weights,
+                          const TrackOptions& options, JointVector& theta, Pose& pose,
+                          Jacobian& J) noexcept {
   const int n = mechanism.dof();
   const KinematicChain& chain = mechanism.chain();
   TrackResult result;
@@ -151,6 +161,8 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
     result.converged = true;
   }
   result.residual = std::sqrt(std::max(ev.cost, 0.0));
+  pose = ev.T;  // ev is always the evaluation at theta
+  J = ev.J;
   return result;
 }
 
