@@ -197,26 +197,30 @@ class PlanarGeometry:
 
 
 class Progress:
-    """A one-line progress bar on stderr."""
+    """A one-line progress bar on stderr (on a terminal; elsewhere a line every 25 %)."""
 
     def __init__(self, label: str, total: float, enabled: bool):
         self.label, self.total, self.enabled = label, total, enabled
+        self.tty = enabled and sys.stderr.isatty()
+        self.step = 1 if self.tty else 25
         self.last = -1
 
     def update(self, done: float) -> None:
         if not self.enabled:
             return
         pct = int(100 * done / self.total) if self.total > 0 else 100
+        pct -= pct % self.step
         if pct == self.last:
             return
         self.last = pct
         bar = "#" * (pct // 4) + "-" * (25 - pct // 4)
-        sys.stderr.write(f"\r{self.label:<16} [{bar}] {pct:3d}%  {done:6.2f}/{self.total:.2f} s")
+        line = f"{self.label:<16} [{bar}] {pct:3d}%  {done:6.2f}/{self.total:.2f} s"
+        sys.stderr.write(f"\r{line}" if self.tty else f"{line}\n")
         sys.stderr.flush()
 
     def close(self, wall: float) -> None:
         if self.enabled:
-            sys.stderr.write(f"  ({wall:.1f} s wall)\n")
+            sys.stderr.write(f"{'  ' if self.tty else self.label + ' '}({wall:.1f} s wall)\n")
             sys.stderr.flush()
 
 
