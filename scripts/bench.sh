@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# Builds and runs the cycle benchmarks (docs/performance.md): the per-cycle latency harness
+# (median, p99, p99.9, worst over 1e6 cycles per case, allocations counted), the Google
+# Benchmark suite of the cycle and its parts, then `virtmech bench` from the virtual
+# environment (C++ against Python and NumPy, and the simulation's real-time factor).
+#
+#   scripts/bench.sh                    this tree
+#   scripts/bench.sh --compare REV      also REV's core under the same harness, run back to back
+#   scripts/bench.sh --cycles N --cpu K timed cycles per case; pin the harness to CPU K
+set -euo pipefail
+cd "$(dirname "$0")/.."
+compare=""
+cycles=1000000
+cpu=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --compare) compare="$2"; shift 2 ;;
+    --cycles) cycles="$2"; shift 2 ;;
+    --cpu) cpu=(--cpu "$2"); shift 2 ;;
+    *) echo "usage: scripts/bench.sh [--compare REV] [--cycles N] [--cpu K]" >&2; exit 2 ;;
+  esac
+done
+py="${PYTHON:-.venv/bin/python}"
+[ -x "$py" ] || py="$(command -v python3)"
+generator=()
+command -v ninja >/dev/null 2>&1 && generator=(-G Ninja)
+jobs="$(nproc 2>/dev/null || echo 2)"
+
+build() {  # source dir, build dir
+  cmake -S "$1" -B "$2" "${generator[@]}" -DCMAKE_BUILD_TYPE=Release -DVIRTMECH_BUILD_BENCH=ON \
+    -DPython_EXECUTABLE="$py" >/dev/null
+  cmake --build "$2" -j "$jobs" >/dev/null
+}
+
+echo "== build (Release)"
+build . build/bench
+base=""
+if [ -n "$compare" ]; then
+  base="$(mktemp -d)"
+  trap 'git worktree remove --force "$base/src" >/dev/null 2>&1 || true; rm -rf "$base"' EXIT
+  git worktree add --detach "$base/src" "$compare" >/dev/null
+  rm -rf "$base/src/bench"
+  cp -r bench "$base/src/bench"  # this tree's harness over REV's core
+  build "$base/src" "$base/build"
+fi
+
+echo "== per-cycle latency: $(git rev-parse --short HEAD)$(git diff --quiet HEAD -- src include || echo '+changes')"
+build/bench/bench/virtmech_cycle_bench --cycles "$cycles" "${cpu[@]}"
+if [ -n "$compare" ]; then
+  echo
+  echo "== per-cycle latency: $compare ($(git rev-parse --short "$compare")), same harness"
+  "$base/build/bench/virtmech_cycle_bench" --cycles "$cycles" "${cpu[@]}"
+fi
+
+if [ -x build/bench/bench/virtmech_bm ]; then
+  echo
+  echo "== Google Benchmark"
+  build/bench/bench/virtmech_bm --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+fi
+
+echo
+if "$py" -c "import virtmech.bench" >/dev/null 2>&1; then
+  echo "== virtmech bench (installed package)"
+  "$py" -m virtmech.bench --cycles "$cycles" "${cpu[@]}"
+else
+  echo "== virtmech bench: virtmech is not installed for $py (scripts/setup.sh)"
+fi
