@@ -37,7 +37,7 @@ void BM_Cycle(benchmark::State& state) {
     benchmark::DoNotOptimize(out.torque.data());
   }
 }
-BENCHMARK(BM_Cycle)->DenseRange(0, 3)->Unit(benchmark::kNanosecond);
+BENCHMARK(BM_Cycle)->DenseRange(0, 4)->Unit(benchmark::kNanosecond);
 
 void BM_OmniForwardJacobian(benchmark::State& state) {
   PhantomOmni omni;

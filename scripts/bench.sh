@@ -52,10 +52,16 @@ if [ -n "$compare" ]; then
   "$base/build/bench/virtmech_cycle_bench" --cycles "$cycles" "${cpu[@]}"
 fi
 
+gbench=(--benchmark_repetitions=3 --benchmark_report_aggregates_only=true)
 if [ -x build/bench/bench/virtmech_bm ]; then
   echo
-  echo "== Google Benchmark"
-  build/bench/bench/virtmech_bm --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+  echo "== Google Benchmark: the cycle and its parts"
+  build/bench/bench/virtmech_bm "${gbench[@]}"
+  if [ -n "$compare" ] && [ -x "$base/build/bench/virtmech_bm" ]; then
+    echo
+    echo "== Google Benchmark: $compare"
+    "$base/build/bench/virtmech_bm" "${gbench[@]}"
+  fi
 fi
 
 echo
