@@ -119,6 +119,7 @@ struct CaseResult {
   long allocations = 0, new_calls = 0, malloc_calls = 0;
   double mean_iterations = 0, mean_iterations_star = 0;
   int max_iterations_seen = 0;
+  int p99_iterations = 0, p999_iterations = 0;  // of both placements together
   long not_converged = 0, faults = 0;
 };
 
@@ -177,6 +178,7 @@ CaseResult run_case(vmbench::BenchCase& c, const Options& o) {
   r.mechanism_dof = ctl.mechanism().dof();
   r.cycles = o.cycles;
   std::vector<float> ns(static_cast<size_t>(o.cycles));
+  std::vector<int> its(static_cast<size_t>(o.cycles));
   JointVector q(n), dq(n);
   CycleOutput out;
   long k = 0;
@@ -197,6 +199,7 @@ CaseResult run_case(vmbench::BenchCase& c, const Options& o) {
         static_cast<float>(std::chrono::duration<double, std::nano>(t1 - t0).count());
     iterations += out.iterations;
     iterations_star += out.iterations_star;
+    its[static_cast<size_t>(i)] = out.iterations + out.iterations_star;
     r.max_iterations_seen = std::max(r.max_iterations_seen, std::max(out.iterations, out.iterations_star));
     if (out.status & status::kNotConverged) ++r.not_converged;
     if (out.status & status::kFaultMask) ++r.faults;
@@ -214,6 +217,9 @@ CaseResult run_case(vmbench::BenchCase& c, const Options& o) {
   r.p99_us = quantile_us(ns, 0.99);
   r.p999_us = quantile_us(ns, 0.999);
   r.max_us = ns.back() * 1e-3;
+  std::sort(its.begin(), its.end());
+  r.p99_iterations = its[std::min(its.size() - 1, static_cast<size_t>(0.99 * static_cast<double>(its.size())))];
+  r.p999_iterations = its[std::min(its.size() - 1, static_cast<size_t>(0.999 * static_cast<double>(its.size())))];
   r.mean_iterations = static_cast<double>(iterations) / static_cast<double>(o.cycles);
   r.mean_iterations_star = static_cast<double>(iterations_star) / static_cast<double>(o.cycles);
   return r;
@@ -345,6 +351,8 @@ int main(int argc, char** argv) {
          << ", \"mean_iterations\": " << r.mean_iterations
          << ", \"mean_iterations_star\": " << r.mean_iterations_star
          << ", \"max_iterations\": " << r.max_iterations_seen
+         << ", \"p99_iterations\": " << r.p99_iterations
+         << ", \"p999_iterations\": " << r.p999_iterations
          << ", \"not_converged_cycles\": " << r.not_converged << ", \"fault_cycles\": " << r.faults
          << "}";
     }
@@ -362,14 +370,14 @@ int main(int argc, char** argv) {
   std::printf("sizeof: ControllerModel %zu B, Controller (model + state + buffers) %zu B, "
               "CycleOutput %zu B, PhantomOmni %zu B, Probe %zu B\n",
               sz_model, sz_controller, sz_output, sz_omni, sz_probe);
-  std::printf("\n%-22s %9s %9s %9s %9s %9s %8s %8s\n", "case", "median", "p99", "p99.9", "max",
-              "mean", "iters", "allocs");
-  std::printf("%-22s %9s %9s %9s %9s %9s %8s %8s\n", "", "[us]", "[us]", "[us]", "[us]", "[us]",
-              "(+star)", "");
+  std::printf("\n%-22s %9s %9s %9s %9s %9s %8s %8s %8s\n", "case", "median", "p99", "p99.9", "max",
+              "mean", "iters", "iters", "allocs");
+  std::printf("%-22s %9s %9s %9s %9s %9s %8s %8s %8s\n", "", "[us]", "[us]", "[us]", "[us]", "[us]",
+              "mean", "p99.9", "");
   for (const CaseResult& r : results) {
-    std::printf("%-22s %9.3f %9.3f %9.3f %9.2f %9.3f %8.2f %8ld\n", r.name.c_str(), r.median_us,
+    std::printf("%-22s %9.3f %9.3f %9.3f %9.2f %9.3f %8.2f %8d %8ld\n", r.name.c_str(), r.median_us,
                 r.p99_us, r.p999_us, r.max_us, r.mean_us,
-                r.mean_iterations + r.mean_iterations_star, r.allocations);
+                r.mean_iterations + r.mean_iterations_star, r.p999_iterations, r.allocations);
   }
   if (!counter_works) std::printf("\nWARNING: the allocation counter saw nothing; counts invalid\n");
   return counter_works ? 0 : 1;
