@@ -282,15 +282,16 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
 
   // nearest placement, W_e (eqs. 18-20)
   // warm start: the last placement moved on by its last change (placements follow the
-  // handle smoothly, so this starts second-order close to the answer)
+  // handle smoothly, so this starts second-order close to the answer); the first cycle
+  // after a start, reset or fault starts from where it is and leaves no change behind
   const TrackOptions& opts = first_ ? M.track_initial : M.track;
   JointVector theta0 = theta_;
   if (!first_) theta0 += theta_ - theta_prev_;
-  theta_prev_ = theta_;
   JointVector theta_new;
   Jacobian J_V;
   const TrackResult r = detail::track(mech, out.handle_pose, theta0, M.w_e_effective, opts,
                                       theta_new, out.mechanism_pose, J_V);
+  theta_prev_ = first_ ? theta_new : theta_;
   theta_ = theta_new;
   out.theta = theta_;
   out.iterations = r.iterations;
@@ -309,10 +310,10 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
     if (first_) theta_star_ = theta_;
     theta0 = theta_star_;
     if (!first_) theta0 += theta_star_ - theta_star_prev_;
-    theta_star_prev_ = theta_star_;
     Jacobian J_Vs;
     const TrackResult rs = detail::track(mech, out.handle_pose, theta0, M.w_e_star_effective,
                                          opts, theta_new, out.mechanism_pose_star, J_Vs);
+    theta_star_prev_ = first_ ? theta_new : theta_star_;
     theta_star_ = theta_new;
     out.iterations_star = rs.iterations;
     out.residual_star = rs.residual;

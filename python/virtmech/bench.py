@@ -427,8 +427,9 @@ class NpController:
         v_R = J_R @ dq
         # warm start: the last placement moved on by its last change
         start = self.theta if self.first else self.theta + (self.theta - self.theta_prev)
-        self.theta_prev = self.theta
-        self.theta, _ = np_track(mech, T_R, start, self.w_e, iterations)
+        theta = np_track(mech, T_R, start, self.w_e, iterations)[0]
+        self.theta_prev = theta if self.first else self.theta
+        self.theta = theta
         T_V, J_V = mech.forward_jacobian(self.theta)
         e = pose_error(T_V, T_R)
         F = self.kp * e + self.kv * self._rate(J_V, self.w_e, v_R)
@@ -440,8 +441,9 @@ class NpController:
                 self.theta_star = self.theta.copy()
             start = (self.theta_star if self.first
                      else self.theta_star + (self.theta_star - self.theta_star_prev))
-            self.theta_star_prev = self.theta_star
-            self.theta_star, _ = np_track(mech, T_R, start, self.w_e_star, iterations_star)
+            theta = np_track(mech, T_R, start, self.w_e_star, iterations_star)[0]
+            self.theta_star_prev = theta if self.first else self.theta_star
+            self.theta_star = theta
             T_s, J_s = mech.forward_jacobian(self.theta_star)
             e_s = pose_error(T_s, T_R)
             Fs = self.kp * e_s + self.kv * self._rate(J_s, self.w_e_star, v_R)
