@@ -27,6 +27,10 @@ Vector6 checked_weights(const std::string& name, const Vector6& w) {
   return w;
 }
 
+// largest change per cycle, as a fraction of the placement's step cap, that the warm start
+// extrapolates
+constexpr double kWarmStartFraction = 0.1;
+
 // The range-space filter P(W) = W J (J^T W J)^+ J^T (eq. 5) applied to wrenches, W diagonal.
 // With S = W^1/2 J, S (S^T S)^+ = (S S^T)^+ S, so equally P(W) x = W^1/2 G^+ W^1/2 J J^T x
 // with G = S S^T restricted to the k task axes of non-zero weight. J^T W J (m x m) and G
@@ -87,6 +91,23 @@ class RangeFilter {
   Jacobian WJ_;
   JointMatrix Gp_;
 };
+
+// The warm start of a placement: theta moved on by its last change, when that change is
+// the smooth motion of one cycle (within a tenth of the solver's step cap per joint); after
+// a jump (a branch switch, a glitch) extrapolating would start far off, so theta itself.
+JointVector warm_start(const Mechanism& mech, const TrackOptions& opts, const JointVector& theta,
+                       const JointVector& theta_prev) noexcept {
+  JointVector start = theta;
+  const JointVector change = theta - theta_prev;
+  for (int i = 0; i < mech.dof(); ++i) {
+    const double cap = mech.chain().joint(i).type == JointType::kRevolute
+                           ? opts.max_step
+                           : opts.max_step_prismatic * mech.length_scale();
+    if (!(std::abs(change[i]) <= kWarmStartFraction * cap)) return start;
+  }
+  start += change;
+  return start;
+}
 
 }  // namespace
 
@@ -285,8 +306,7 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   // handle smoothly, so this starts second-order close to the answer); the first cycle
   // after a start, reset or fault starts from where it is and leaves no change behind
   const TrackOptions& opts = first_ ? M.track_initial : M.track;
-  JointVector theta0 = theta_;
-  if (!first_) theta0 += theta_ - theta_prev_;
+  JointVector theta0 = first_ ? theta_ : warm_start(mech, opts, theta_, theta_prev_);
   JointVector theta_new;
   Jacobian J_V;
   const TrackResult r = detail::track(mech, out.handle_pose, theta0, M.w_e_effective, opts,
@@ -308,8 +328,7 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   // un-powered placement, W_e* (eq. 25), and the range-space term of eq. 26
   if (M.under_actuated_term) {
     if (first_) theta_star_ = theta_;
-    theta0 = theta_star_;
-    if (!first_) theta0 += theta_star_ - theta_star_prev_;
+    theta0 = first_ ? theta_star_ : warm_start(mech, opts, theta_star_, theta_star_prev_);
     Jacobian J_Vs;
     const TrackResult rs = detail::track(mech, out.handle_pose, theta0, M.w_e_star_effective,
                                          opts, theta_new, out.mechanism_pose_star, J_Vs);

@@ -325,6 +325,13 @@ def np_serial5() -> NpChain:
     return NpChain(np.eye(4), joints, _pose(None, [0.3, 0, 0.2]), length_scale=0.1)
 
 
+def np_warm_start(m: NpChain, theta: np.ndarray, theta_prev: np.ndarray) -> np.ndarray:
+    """theta moved on by its last change if that is within a tenth of the step cap."""
+    cap = np.array([0.5 if t == "revolute" else 0.5 * m.length_scale for t in m.types])
+    change = theta - theta_prev
+    return theta + change if np.all(np.abs(change) <= 0.1 * cap) else theta
+
+
 def np_track(m: NpChain, target: np.ndarray, theta0: np.ndarray, W: np.ndarray,
              iterations: int) -> tuple[np.ndarray, int]:
     """Weighted, damped Gauss-Newton placement (eqs. 18-20) with the core's step rules,
@@ -426,7 +433,7 @@ class NpController:
         T_R, J_R = dev.forward_jacobian(q)
         v_R = J_R @ dq
         # warm start: the last placement moved on by its last change
-        start = self.theta if self.first else self.theta + (self.theta - self.theta_prev)
+        start = self.theta if self.first else np_warm_start(mech, self.theta, self.theta_prev)
         theta = np_track(mech, T_R, start, self.w_e, iterations)[0]
         self.theta_prev = theta if self.first else self.theta
         self.theta = theta
@@ -440,7 +447,7 @@ class NpController:
             if self.first:
                 self.theta_star = self.theta.copy()
             start = (self.theta_star if self.first
-                     else self.theta_star + (self.theta_star - self.theta_star_prev))
+                     else np_warm_start(mech, self.theta_star, self.theta_star_prev))
             theta = np_track(mech, T_R, start, self.w_e_star, iterations_star)[0]
             self.theta_star_prev = theta if self.first else self.theta_star
             self.theta_star = theta
