@@ -303,14 +303,19 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
 
   // nearest placement, W_e (eqs. 18-20)
   // warm start: the last placement moved on by its last change (placements follow the
-  // handle smoothly, so this starts second-order close to the answer); the first cycle
-  // after a start, reset or fault starts from where it is and leaves no change behind
+  // handle smoothly, so this starts second-order close to the answer), when that change is
+  // between two converged placements: an unconverged one (a handle beyond the mechanism's
+  // reach) wanders, and extrapolating the wandering would throw the start off. The first
+  // cycle after a start, reset or fault starts from where it is.
   const TrackOptions& opts = first_ ? M.track_initial : M.track;
-  JointVector theta0 = first_ ? theta_ : warm_start(mech, opts, theta_, theta_prev_);
+  JointVector theta0 =
+      !first_ && extrapolate_ ? warm_start(mech, opts, theta_, theta_prev_) : theta_;
   JointVector theta_new;
   Jacobian J_V;
   const TrackResult r = detail::track(mech, out.handle_pose, theta0, M.w_e_effective, opts,
                                       theta_new, out.mechanism_pose, J_V);
+  extrapolate_ = !first_ && r.converged && converged_;
+  converged_ = r.converged;
   theta_prev_ = first_ ? theta_new : theta_;
   theta_ = theta_new;
   out.theta = theta_;
@@ -328,10 +333,14 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   // un-powered placement, W_e* (eq. 25), and the range-space term of eq. 26
   if (M.under_actuated_term) {
     if (first_) theta_star_ = theta_;
-    theta0 = first_ ? theta_star_ : warm_start(mech, opts, theta_star_, theta_star_prev_);
+    theta0 = !first_ && extrapolate_star_
+                 ? warm_start(mech, opts, theta_star_, theta_star_prev_)
+                 : theta_star_;
     Jacobian J_Vs;
     const TrackResult rs = detail::track(mech, out.handle_pose, theta0, M.w_e_star_effective,
                                          opts, theta_new, out.mechanism_pose_star, J_Vs);
+    extrapolate_star_ = !first_ && rs.converged && converged_star_;
+    converged_star_ = rs.converged;
     theta_star_prev_ = first_ ? theta_new : theta_star_;
     theta_star_ = theta_new;
     out.iterations_star = rs.iterations;

@@ -145,6 +145,8 @@ class Controller {
   // state
   JointVector theta_, theta_star_;
   JointVector theta_prev_, theta_star_prev_;  // the placements one cycle earlier (warm start)
+  bool converged_ = false, converged_star_ = false;      // the last placements converged
+  bool extrapolate_ = false, extrapolate_star_ = false;  // ... and the ones before them
   bool first_ = true;
   long ramp_count_ = 0;
   double last_t_ = std::numeric_limits<double>::quiet_NaN();

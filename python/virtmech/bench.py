@@ -333,10 +333,10 @@ def np_warm_start(m: NpChain, theta: np.ndarray, theta_prev: np.ndarray) -> np.n
 
 
 def np_track(m: NpChain, target: np.ndarray, theta0: np.ndarray, W: np.ndarray,
-             iterations: int) -> tuple[np.ndarray, int]:
+             iterations: int) -> tuple[np.ndarray, int, bool]:
     """Weighted, damped Gauss-Newton placement (eqs. 18-20) with the core's step rules,
-    stopped after `iterations` iterations or at the core's tolerances. Returns theta and the
-    iterations done."""
+    stopped after `iterations` iterations or at the core's tolerances. Returns theta, the
+    iterations done and whether a tolerance was met."""
     theta = np.clip(theta0, m.lower, m.upper)
     cap = np.array([0.5 if t == "revolute" else 0.5 * m.length_scale for t in m.types])
     n = m.dof
@@ -352,9 +352,10 @@ def np_track(m: NpChain, target: np.ndarray, theta0: np.ndarray, W: np.ndarray,
         return float(e @ (W * e))
 
     J, g, cost = evaluate(theta)
-    done = 0
+    done, converged = 0, False
     for it in range(iterations):
         if np.abs(g).max() <= 1e-14:
+            converged = True
             break
         H = J.T @ (W[:, None] * J)
         H[np.diag_indices(n)] += 1e-12 * (np.trace(H) / n) + 1e-300
@@ -386,13 +387,15 @@ def np_track(m: NpChain, target: np.ndarray, theta0: np.ndarray, W: np.ndarray,
                     break
                 alpha *= 0.5
             if not accepted:
+                converged = True
                 break
             tJ, tg, tcost = evaluate(trial)
         moved = np.abs(trial - theta).max()
         theta, J, g, cost = trial, tJ, tg, tcost
         if moved <= 1e-12:
+            converged = True
             break
-    return theta, done
+    return theta, done, converged or bool(np.abs(g).max() <= 1e-14)
 
 
 class NpController:
@@ -416,6 +419,9 @@ class NpController:
         self.theta_star = mechanism.home.copy()
         self.theta_prev = self.theta.copy()
         self.theta_star_prev = self.theta.copy()
+        # [this cycle's placement converged, it and the one before converged]
+        self.settled = [False, False]
+        self.settled_star = [False, False]
         self.first = True
         self.ramp_count = 0
 
@@ -432,9 +438,11 @@ class NpController:
         dev, mech = self.dev, self.mech
         T_R, J_R = dev.forward_jacobian(q)
         v_R = J_R @ dq
-        # warm start: the last placement moved on by its last change
-        start = self.theta if self.first else np_warm_start(mech, self.theta, self.theta_prev)
-        theta = np_track(mech, T_R, start, self.w_e, iterations)[0]
+        # warm start: the last placement moved on by its last change, if both converged
+        start = (np_warm_start(mech, self.theta, self.theta_prev)
+                 if not self.first and self.settled[1] else self.theta)
+        theta, _, converged = np_track(mech, T_R, start, self.w_e, iterations)
+        self.settled = [converged, converged and self.settled[0] and not self.first]
         self.theta_prev = theta if self.first else self.theta
         self.theta = theta
         T_V, J_V = mech.forward_jacobian(self.theta)
@@ -446,9 +454,11 @@ class NpController:
         if self.under_actuated:
             if self.first:
                 self.theta_star = self.theta.copy()
-            start = (self.theta_star if self.first
-                     else np_warm_start(mech, self.theta_star, self.theta_star_prev))
-            theta = np_track(mech, T_R, start, self.w_e_star, iterations_star)[0]
+            start = (np_warm_start(mech, self.theta_star, self.theta_star_prev)
+                     if not self.first and self.settled_star[1] else self.theta_star)
+            theta, _, converged = np_track(mech, T_R, start, self.w_e_star, iterations_star)
+            self.settled_star = [converged,
+                                 converged and self.settled_star[0] and not self.first]
             self.theta_star_prev = theta if self.first else self.theta_star
             self.theta_star = theta
             T_s, J_s = mech.forward_jacobian(self.theta_star)

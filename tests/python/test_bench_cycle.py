@@ -34,3 +34,16 @@ def test_reset_forgets_the_previous_placements():
     c.reset()
     run2 = np.array([c.step(q[k], dq[k]).torque for k in range(300)])
     np.testing.assert_array_equal(run1, run2)
+
+
+@pytest.mark.parametrize("name", bench.CASES)
+def test_smooth_motion_gives_smooth_torques(name):
+    # the hand moves smoothly, so must the torques: no one-cycle spikes, also where the
+    # placement cannot converge (the lifted probe), which an extrapolated warm start of a
+    # wandering placement would produce
+    case = bench.make_case(name)
+    c = case.controller
+    q, dq = case.joint_state(np.arange(3000), c.model["period_s"])
+    tau = np.array([c.step(q[k], dq[k]).torque for k in range(3000)])
+    second_difference = np.abs(np.diff(tau[10:], 2, axis=0)).max()
+    assert second_difference < 0.02 * np.abs(tau).max()
