@@ -46,6 +46,8 @@ def test_json_report_has_the_issue_schema(report):
             if kind is float:
                 assert np.isfinite(value) and value > 0.0, (case["name"], field, value)
         assert case["p999_us"] >= case["p99_us"] >= case["median_us"]
+        # the binding's cost per call, paired cycle by cycle with the cycle's own time
+        assert np.isfinite(case["python_overhead_us"]) and case["python_overhead_us"] > 0.0
         assert case["max_us"] >= case["p999_us"]
     assert report["simulation"] == []
     json.dumps(report)  # serialisable as is
