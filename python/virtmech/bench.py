@@ -567,7 +567,7 @@ def python_step(case: Case, cycles: int) -> dict[str, Any]:
         its[k] = out.iterations, out.iterations_star
     call_us = (ns - _timer_overhead_ns()) * 1e-3
     return {"median_us": float(np.median(call_us)),
-            "overhead_us": float(np.median(call_us - own_us)), "torque": tau,
+            "overhead_us": float(np.median(call_us - own_us)), "own_us": own_us, "torque": tau,
             "iterations": its, "q": q, "dq": dq}
 
 
@@ -688,6 +688,9 @@ def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CY
         nb = numpy_baseline(case, q_w, dq_w, its_w, py["q"][:m], py["dq"][:m],
                             py["iterations"][:m])
         diff = float(np.abs(nb["torque"] - py["torque"][:m]).max())
+        # side by side: the C++ cycle's own time over the very cycles NumPy ran (a case's
+        # cost varies along its trajectory, so medians over other spans would not compare)
+        cpp_same = float(np.median(py["own_us"][:m]))
         out_cases.append({
             "name": name,
             "median_us": h["median_us"], "p99_us": h["p99_us"], "p999_us": h["p999_us"],
@@ -695,7 +698,8 @@ def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CY
             "allocations": int(h["allocations"]),
             "mean_iterations": h["mean_iterations"] + h["mean_iterations_star"],
             "numpy_median_us": nb["median_us"],
-            "speedup_vs_numpy": nb["median_us"] / h["median_us"] if h["median_us"] > 0 else None,
+            "speedup_vs_numpy": nb["median_us"] / cpp_same if cpp_same > 0 else None,
+            "cpp_median_numpy_cycles_us": cpp_same,
             "numpy_cycles": m,
             "numpy_max_torque_difference": diff,
             "python_step_median_us": py["median_us"],
