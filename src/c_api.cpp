@@ -41,6 +41,18 @@ void identity16(double* m) {
   for (int i = 0; i < 16; ++i) m[i] = (i % 5 == 0) ? 1.0 : 0.0;
 }
 
+// identity poses, z axes, no limits
+void init_chain(vm_chain& c) {
+  identity16(c.base);
+  identity16(c.handle);
+  for (auto& j : c.joints) {
+    identity16(j.origin);
+    j.axis[2] = 1.0;
+    j.lower = -HUGE_VAL;
+    j.upper = HUGE_VAL;
+  }
+}
+
 Eigen::Vector3d v3(const double* v) { return Eigen::Vector3d(v[0], v[1], v[2]); }
 
 KinematicChain chain_from(const vm_chain& c) {
@@ -164,14 +176,7 @@ void vm_device_desc_init(vm_device_desc* desc, vm_device_type type) {
     desc->torque_limit[0] = 1.0;
     desc->max_force = 5.0;
   }
-  identity16(desc->chain.base);
-  identity16(desc->chain.handle);
-  for (auto& j : desc->chain.joints) {
-    identity16(j.origin);
-    j.axis[2] = 1.0;
-    j.lower = -HUGE_VAL;
-    j.upper = HUGE_VAL;
-  }
+  init_chain(desc->chain);
 }
 
 void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type) {
@@ -181,14 +186,7 @@ void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type) {
   desc->length = 0.1;
   desc->length_scale = 0.1;
   if (type == VM_MECHANISM_PLANAR_ARM || type == VM_MECHANISM_LINE_GUIDE) desc->direction[0] = 1.0;
-  identity16(desc->chain.base);
-  identity16(desc->chain.handle);
-  for (auto& j : desc->chain.joints) {
-    identity16(j.origin);
-    j.axis[2] = 1.0;
-    j.lower = -HUGE_VAL;
-    j.upper = HUGE_VAL;
-  }
+  init_chain(desc->chain);
 }
 
 void vm_settings_init(vm_settings* s) {
