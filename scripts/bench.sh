@@ -20,8 +20,11 @@ while [ $# -gt 0 ]; do
     *) echo "usage: scripts/bench.sh [--compare REV] [--cycles N] [--cpu K]" >&2; exit 2 ;;
   esac
 done
-py="${PYTHON:-.venv/bin/python}"
-[ -x "$py" ] || py="$(command -v python3)"
+if [ -z "${PYTHON:-}" ]; then
+  # the virtual environment with the simulation, and Google Benchmark (Debian)
+  VIRTMECH_SETUP_BENCHMARK=1 bash scripts/setup.sh sim
+fi
+py="${PYTHON:-$PWD/.venv/bin/python}"
 generator=()
 command -v ninja >/dev/null 2>&1 && generator=(-G Ninja)
 jobs="$(nproc 2>/dev/null || echo 2)"

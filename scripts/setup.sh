@@ -12,6 +12,8 @@ command -v ninja >/dev/null 2>&1 || need+=(ninja-build)
 command -v g++ >/dev/null 2>&1 || need+=(g++)
 if [ "$extras" = "test" ]; then
   [ -f /usr/include/gtest/gtest.h ] || need+=(libgtest-dev)
+fi
+if [ "${VIRTMECH_SETUP_BENCHMARK:-0}" = "1" ]; then
   [ -f /usr/include/benchmark/benchmark.h ] || need+=(libbenchmark-dev)
 fi
 if [ "${#need[@]}" -gt 0 ]; then
