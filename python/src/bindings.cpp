@@ -240,6 +240,8 @@ nb::dict model_dict(const ControllerModel& m) {
 
 }  // namespace
 
+void bind_sim_kernel(nb::module_& m);  // sim_kernel.cpp
+
 NB_MODULE(_core, m) {
   m.doc() = "virtmech core (C++): devices, virtual mechanisms and the controller cycle.";
   m.attr("__version__") = VIRTMECH_VERSION_STRING;
@@ -761,4 +763,6 @@ NB_MODULE(_core, m) {
       .def_prop_ro("model", [](const Controller& c) { return model_dict(c.model()); },
                    "The resolved settings (every default filled in).")
       .def_prop_ro("last", [](const Controller& c) { return c.last(); }, "The last cycle's output.");
+
+  bind_sim_kernel(m);
 }

@@ -52,8 +52,48 @@ def min_jerk(x: float) -> float:
     return x * x * x * (10.0 - 15.0 * x + 6.0 * x * x)
 
 
+def min_jerk_array(x: np.ndarray) -> np.ndarray:
+    """`min_jerk` of every element of x."""
+    x = np.clip(np.asarray(x, dtype=float), 0.0, 1.0)
+    return x * x * x * (10.0 - 15.0 * x + 6.0 * x * x)
+
+
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return vm.so3_exp(np.asarray(axis, dtype=float) * angle)
+
+
+def rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Rotations (m, 3, 3) about the unit `axis` by each of `angles` (Rodrigues)."""
+    a = np.asarray(axis, dtype=float)
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    th = np.asarray(angles, dtype=float)[:, None, None]
+    return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * (K @ K)
+
+
+def so3_log_batch(R: np.ndarray) -> np.ndarray:
+    """so3_log of each rotation in R (m, 3, 3): rotation vectors (m, 3). The angle comes from
+    atan2(|sin|, cos), exact for small rotations; rotations within 1e-6 rad of pi, where the
+    axis is not in the skew part, go through vm.so3_log."""
+    v = 0.5 * np.stack(
+        (R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]), axis=1
+    )
+    s = np.linalg.norm(v, axis=1)
+    c = 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
+    th = np.arctan2(s, c)
+    f = np.where(s > 1e-300, th / np.where(s > 1e-300, s, 1.0), 1.0)
+    out = v * f[:, None]
+    for i in np.flatnonzero(th > math.pi - 1e-6):
+        out[i] = vm.so3_log(R[i])
+    return out
+
+
+#: columns of a hand plan (Intent.plan): one row per control cycle
+PLAN_COLUMNS = (
+    ["ax", "ay", "az"]
+    + [f"R{i}{j}" for i in range(3) for j in range(3)]
+    + ["vx", "vy", "vz", "wx", "wy", "wz", "k_t", "b_t", "k_r", "b_r"]
+    + ["fx", "fy", "fz", "force_in_handle", "segment"]
+)
 
 
 @dataclass
@@ -127,26 +167,122 @@ class Intent:
         self.active = i
 
     def _follow(self, seg: dict, s: float) -> tuple[np.ndarray, np.ndarray]:
-        p, R = self._start_p, self._start_R
+        p, R = self._follow_batch(seg, np.array([s]))
+        return p[0], R[0]
+
+    def start_cycles(self, n_cycles: int) -> list[int]:
+        """The control cycles (< n_cycles) at which a segment starts: a plan must not run
+        across one (it needs the handle's pose there)."""
+        out = []
+        for seg in self.segments:
+            start = seg["start_s"] - 1e-12
+            k = max(0, math.ceil(start / self.T))
+            while k * self.T < start:
+                k += 1
+            while k > 0 and (k - 1) * self.T >= start:
+                k -= 1
+            if k < n_cycles:
+                out.append(k)
+        return sorted(set(out))
+
+    def plan(self, k0: int, k1: int, T_handle: np.ndarray) -> np.ndarray:
+        """The hand's targets for control cycles k0 .. k1 - 1 (t = k T), one row each with the
+        columns PLAN_COLUMNS: what `update` returns cycle by cycle, for a stretch in which no
+        segment starts after k0 (see `start_cycles`). T_handle is the handle's pose at cycle
+        k0 (a segment starting there starts from it). A push given in handle axes is
+        returned in handle axes with force_in_handle = 1: it turns with the handle."""
+        t = np.arange(k0, k1) * self.T
+        m = len(t)
+        while (
+            self.active + 1 < len(self.segments)
+            and t[0] >= self.segments[self.active + 1]["start_s"] - 1e-12
+        ):
+            self._start(self.active + 1, T_handle)
+        nxt = self.active + 1
+        if nxt < len(self.segments) and m > 1:
+            if t[-1] >= self.segments[nxt]["start_s"] - 1e-12:
+                raise ValueError(
+                    f"Intent.plan: segment {nxt} starts inside cycles {k0}..{k1 - 1}; split the "
+                    "plan at start_cycles()"
+                )
+        P = np.empty((m, len(PLAN_COLUMNS)))
+        p = np.broadcast_to(self.p_a, (m, 3)).copy()
+        R = np.broadcast_to(self.R_a, (m, 3, 3)).copy()
+        force = np.zeros((m, 3))
+        in_handle = 0.0
+        if self.active >= 0:
+            seg = self.segments[self.active]
+            dur = seg.get("duration_s", 0.0)
+            s = min_jerk_array((t - seg["start_s"]) / dur) if dur > 0 else np.ones(m)
+            action = seg["action"]
+            p[:], R[:] = self._start_p, self._start_R
+            if action == "follow":
+                p, R = self._follow_batch(seg, s)
+            elif action in ("twist", "resist"):
+                R = rotations(self._axis_vec, np.radians(seg["angle_deg"]) * s) @ self._start_R
+            if "force" in seg:
+                ramp = seg.get("ramp_s", 0.1)
+                tin = t - seg["start_s"]
+                tout = seg["start_s"] + dur - t if dur > 0 else np.full(m, math.inf)
+                if ramp > 0:
+                    g = np.minimum(min_jerk_array(tin / ramp), min_jerk_array(tout / ramp))
+                else:
+                    g = np.ones(m)
+                g = np.where((tin >= 0) & (tout >= 0), g, 0.0)
+                force = g[:, None] * np.asarray(seg["force"], dtype=float)[None, :]
+                in_handle = 1.0 if seg.get("force_frame", "world") == "handle" else 0.0
+        # anchor rates: differences with the previous cycle's anchor (0 on the very first)
+        if self._prev_p is None:
+            pp = np.vstack([p[:1], p[:-1]])
+            Rp = np.concatenate([R[:1], R[:-1]])
+        else:
+            pp = np.vstack([self._prev_p[None], p[:-1]])
+            Rp = np.concatenate([self._prev_R[None], R[:-1]])
+        v = (p - pp) / self.T
+        w = so3_log_batch(R @ np.transpose(Rp, (0, 2, 1))) / self.T
+        self.p_a, self.R_a = p[-1].copy(), R[-1].copy()
+        self._prev_p, self._prev_R = p[-1].copy(), R[-1].copy()
+        h = self.hand
+        P[:, 0:3] = p
+        P[:, 3:12] = R.reshape(m, 9)
+        P[:, 12:15] = 0.0 if self.trans_passive else v
+        P[:, 15:18] = 0.0 if self.rot_passive else w
+        P[:, 18] = 0.0 if self.trans_passive else float(self.k_t)
+        P[:, 19] = h.damping
+        P[:, 20] = 0.0 if self.rot_passive else float(self.k_r)
+        P[:, 21] = h.rot_damping
+        P[:, 22:25] = force
+        P[:, 25] = in_handle
+        P[:, 26] = self.active
+        return P
+
+    def _follow_batch(self, seg: dict, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        m = len(s)
+        p = np.broadcast_to(self._start_p, (m, 3)).copy()
+        R = np.broadcast_to(self._start_R, (m, 3, 3)).copy()
         if "theta" in seg:
             a, b = seg["theta"]
-            Ts = self.mechanism.forward(np.array([a + s * (b - a)]))
             T0 = self._path0
-            p = p + Ts[:3, 3] - T0[:3, 3]
-            if seg.get("orientation", "hold") == "path":
-                R = Ts[:3, :3] @ T0[:3, :3].T @ R
+            for i, si in enumerate(s):
+                Ts = self.mechanism.forward(np.array([a + si * (b - a)]))
+                p[i] += Ts[:3, 3] - T0[:3, 3]
+                if seg.get("orientation", "hold") == "path":
+                    R[i] = Ts[:3, :3] @ T0[:3, :3].T @ self._start_R
         else:
             pts = np.vstack([np.zeros(3), np.asarray(seg["offsets"], dtype=float)])
             seglen = np.linalg.norm(np.diff(pts, axis=0), axis=1)
             total = float(seglen.sum())
             if total > 0.0:
                 dist = s * total
-                k = int(np.searchsorted(np.cumsum(seglen), dist, side="left"))
-                k = min(k, len(seglen) - 1)
-                before = float(np.sum(seglen[:k]))
-                u = (dist - before) / seglen[k] if seglen[k] > 0 else 0.0
-                p = p + pts[k] + u * (pts[k + 1] - pts[k])
+                cum = np.cumsum(seglen)
+                k = np.minimum(np.searchsorted(cum, dist, side="left"), len(seglen) - 1)
+                before = cum[k] - seglen[k]
+                safe = np.where(seglen[k] > 0, seglen[k], 1.0)
+                u = np.where(seglen[k] > 0, (dist - before) / safe, 0.0)
+                p += pts[k] + u[:, None] * (pts[k + 1] - pts[k])
         return p, R
+
+    # ---- one cycle at a time --------------------------------------------------------
 
     def update(self, t: float, T_handle: np.ndarray) -> HandTarget:
         while (

@@ -25,8 +25,9 @@ import numpy as np
 
 import virtmech as vm
 
-from .grip import finger_forces
-from .human import HandImpedance, Intent, hand_wrench
+from .grip import finger_forces_batch
+from .human import HandImpedance, Intent
+from .inner import CompiledLoop, PythonLoop
 from .model import BuiltModel, DeviceModel, HandBody, build_mjcf, compile_model
 from .sensors import Sensors, SensorSettings
 
@@ -191,6 +192,15 @@ class PlanarGeometry:
         s = -T[:3, 2]  # from the pivot toward the handle, if the stylus points at the pivot
         return dist, math.atan2(v, u), math.atan2(float(s @ self.e), float(s @ self.d))
 
+    def measure_batch(self, p: np.ndarray, z: np.ndarray):
+        """`measure` for N handle positions p (N, 3) and stylus axes z (N, 3) at once."""
+        w = p - self.c
+        h = w @ self.n
+        u, v = w @ self.d, w @ self.e
+        dist = np.hypot(np.hypot(u, v) - self.L, h)
+        s = -z
+        return dist, np.arctan2(v, u), np.arctan2(s @ self.e, s @ self.d)
+
 
 # ---------------------------------------------------------------------------------------
 # progress
@@ -290,6 +300,15 @@ def log_columns(n: int, m: int) -> list[str]:
     )
 
 
+#: the columns the inner loop writes, cycle by cycle; the rest of log_columns (the distance
+#: from the path and the grip) follow from them and are computed after the run
+POST_COLUMNS = 10
+
+
+def kernel_columns(n: int, m: int) -> list[str]:
+    return log_columns(n, m)[:-POST_COLUMNS]
+
+
 UNITS = {
     "t": "s",
     "q": "rad",
@@ -331,9 +350,17 @@ UNITS = {
 # the loop
 
 
-def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
+def run(
+    scenario, seed: int | None = None, progress: bool = False, engine: str = "compiled"
+) -> SimResult:
     """Runs a scenario (a virtmech.scenarios.Scenario, a name or a path) headless.
-    `seed` overrides the scenario's; same scenario and seed give the same log."""
+    `seed` overrides the scenario's; same scenario and seed give the same log.
+
+    engine: "compiled" (the inner loop in C++, virtmech._core._SimKernel) or "python" (the
+    same loop written in Python, cycle by cycle: the reference the compiled one is tested
+    against, about 10x slower)."""
+    if engine not in ("compiled", "python"):
+        raise ValueError(f"engine: expected 'compiled' or 'python', got {engine!r}")
     import mujoco
 
     from .. import scenarios as sc
@@ -373,7 +400,6 @@ def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
     model = compile_model(built)
     data = mujoco.MjData(model)
     C, Cinv, c0 = built.coupling.C, built.coupling.Cinv, built.coupling.c0
-    CinvT = Cinv.T.copy()
 
     q0 = initial_joints(S, device, mech)
     data.qpos[:] = C @ q0 + c0
@@ -384,102 +410,78 @@ def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
     comp_bodies = [
         mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in built.device_bodies
     ]
-    body_mass = model.body_mass.copy()
-    jacp = np.zeros((3, model.nv))
 
-    sensors = Sensors(SensorSettings(**S["sensors"]), n, T_ctrl, rng)
     intent = Intent(S["intent"], human, mech, device.forward(q0), T_ctrl)
     planar = PlanarGeometry(mech) if S["mechanism"]["type"] == "PlanarArm" else None
 
     columns = log_columns(n, m)
+    K = len(kernel_columns(n, m))
     N = int(round(S["duration_s"] / T_ctrl)) + 1
     log = np.zeros((N, len(columns)))
     bar = Progress(scenario.name, S["duration_s"], progress)
 
-    ctrl_out = np.zeros(len(act_idx))
+    sensor_settings = SensorSettings(**S["sensors"])
+    sensors = Sensors(sensor_settings, n, T_ctrl, rng)
+    comp = comp_bodies if grav_comp else []
+    loop_args = dict(
+        controller=ctrl,
+        model=model,
+        data=data,
+        coupling_inv=Cinv,
+        coupling_offset=c0,
+        actuated=[int(i) for i in act_idx],
+        substeps=nsub,
+        period_s=T_ctrl,
+        comp_bodies=[int(b) for b in comp],
+        comp_masses=[float(model.body_mass[b]) for b in comp],
+        gravity=g_world,
+        sensors=sensors,
+    )
+    inner = CompiledLoop(**loop_args) if engine == "compiled" else PythonLoop(**loop_args)
+
+    # stretches of cycles: split where a segment starts (the hand's plan needs the handle's
+    # pose there) and every `chunk` cycles (progress)
+    chunk = 250
+    cuts = sorted(set(intent.start_cycles(N)) | set(range(0, N, chunk)) | {N})
     wall0 = time.perf_counter()
-    fwd, jac, pe = device.forward, device.jacobian, vm.pose_error
-    for k in range(N):
-        t = k * T_ctrl
-        q = Cinv @ (data.qpos - c0)
-        dq = Cinv @ data.qvel
-        qm, dqm = sensors.read(q)
-        out = ctrl.step(qm, dqm, t)
-        tau = out.torque
-        cmd = tau.copy()
-        if grav_comp:
-            mujoco.mj_kinematics(model, data)
-            mujoco.mj_comPos(model, data)
-            g_s = np.zeros(model.nv)
-            for b in comp_bodies:
-                mujoco.mj_jacBodyCom(model, data, jacp, None, b)
-                g_s += jacp.T @ (body_mass[b] * g_world)
-            cmd[act_idx] -= (C.T @ g_s)[act_idx]
-        ctrl_out[:] = cmd[act_idx]
-        data.ctrl[:] = ctrl_out
-
-        T_h = fwd(q)
-        target = intent.update(t, T_h)
-        wrench_h0 = None
-        for _ in range(nsub):
-            qs = Cinv @ (data.qpos - c0)
-            dqs = Cinv @ data.qvel
-            Th = fwd(qs)
-            J = jac(qs)
-            tw = J @ dqs
-            W_h = hand_wrench(target, Th, tw)
-            if wrench_h0 is None:
-                wrench_h0, twist0 = W_h, tw
-            data.qfrc_applied[:] = CinvT @ (J.T @ W_h)
-            mujoco.mj_step(model, data)
-
-        # the record of this cycle (state at t, commands held over [t, t + T))
-        wrench = out.wrench
-        if planar is not None:
-            dist, a_pos, a_sty = planar.measure(T_h)
-        else:
-            dist, a_pos, a_sty = float(np.linalg.norm(out.error[:3])), math.nan, math.nan
-        p1, F1, p2, F2, mz = finger_forces(T_h, wrench, contacts)
-        motor = np.zeros(n)
-        motor[act_idx] = data.actuator_force
-        motor_dev = motor  # actuators act on device joints directly
-        log[k] = np.concatenate(
-            (
-                [t],
-                q,
-                dq,
-                qm,
-                dqm,
-                T_h[:3, 3],
-                T_h[:3, 2],
-                twist0,
-                wrench,
-                tau,
-                motor_dev,
-                [out.status, out.ramp, out.iterations, out.iterations_star],
-                out.theta,
-                out.theta_star,
-                out.error,
-                out.error_dot,
-                out.error_star,
-                out.error_star_dot,
-                out.wrench_null,
-                out.wrench_range,
-                wrench_h0,
-                target.p,
-                [target.segment],
-                [dist, a_pos, a_sty],
-                F1,
-                F2,
-                [mz],
-            )
+    for k0, k1 in zip(cuts[:-1], cuts[1:]):
+        T_h0 = device.forward(Cinv @ (data.qpos - c0))
+        plan = intent.plan(k0, k1, T_h0)
+        rows = k1 - k0
+        noise = (
+            rng.normal(0.0, sensor_settings.noise_rad, (rows, n))
+            if sensor_settings.noise_rad > 0.0
+            else np.zeros((rows, n))
         )
-        if progress and k % 50 == 0:
-            bar.update(t)
+        dropout = (
+            (rng.random(rows) < sensor_settings.dropout_probability).astype(float)
+            if sensor_settings.dropout_probability > 0.0
+            else np.zeros(rows)
+        )
+        block = np.zeros((rows, K))
+        inner.run(k0, plan, noise, dropout, block)
+        log[k0:k1, :K] = block
+        bar.update(k1 * T_ctrl)
     wall = time.perf_counter() - wall0
     bar.update(S["duration_s"])
     bar.close(wall)
-    del pe
+
+    # what follows from the logged state alone, for all cycles at once
+    c = {name: i for i, name in enumerate(columns)}
+    p_h = log[:, c["px"] : c["px"] + 3]
+    z_h = log[:, c["sx"] : c["sx"] + 3]
+    if planar is not None:
+        dist, a_pos, a_sty = planar.measure_batch(p_h, z_h)
+    else:
+        dist = np.linalg.norm(log[:, c["e0"] : c["e0"] + 3], axis=1)
+        a_pos = a_sty = np.full(N, math.nan)
+    _, F1, _, F2, mz = finger_forces_batch(p_h, z_h, log[:, c["fx"] : c["fx"] + 6], contacts)
+    log[:, c["dist"]] = dist
+    log[:, c["arm_pos_angle"]] = a_pos
+    log[:, c["arm_stylus_angle"]] = a_sty
+    log[:, c["ff1x"] : c["ff1x"] + 3] = F1
+    log[:, c["ff2x"] : c["ff2x"] + 3] = F2
+    log[:, c["grip_twist"]] = mz
 
     info = {
         "device": device.to_dict(),
@@ -490,13 +492,14 @@ def run(scenario, seed: int | None = None, progress: bool = False) -> SimResult:
         },
         "human": human.to_dict(),
         "grip_contacts": list(contacts),
-        "sensors": SensorSettings(**S["sensors"]).to_dict(),
+        "sensors": sensor_settings.to_dict(),
         "physics": {
             "timestep_s": T_ctrl / nsub,
             "substeps": nsub,
             "gravity": (g_world if gravity_on else np.zeros(3)).tolist(),
             "gravity_compensation": grav_comp,
             "integrator": "implicitfast",
+            "engine": engine,
         },
         "initial_q": q0.tolist(),
         "seed": seed,

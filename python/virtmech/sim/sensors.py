@@ -56,14 +56,22 @@ class Sensors:
             return q.copy()
         return np.round(q / self.step) * self.step
 
-    def read(self, q_true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Measured (q, dq) for this cycle from the true joint values."""
+    def read(
+        self, q_true: np.ndarray, noise: np.ndarray | None = None, dropout: bool | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Measured (q, dq) for this cycle from the true joint values. `noise` (n,) and
+        `dropout` are this cycle's draws when given (the simulation draws them ahead, a
+        stretch of cycles at a time); otherwise they are drawn here from `rng`."""
         q = q_true
-        if self.s.noise_rad > 0.0:
+        if noise is not None:
+            q = q + noise
+        elif self.s.noise_rad > 0.0:
             q = q + self.rng.normal(0.0, self.s.noise_rad, self.n)
         sample = self.quantise(q)
-        if self._held is not None and self.s.dropout_probability > 0.0:
-            if self.rng.random() < self.s.dropout_probability:
+        if self._held is not None:
+            if dropout is None and self.s.dropout_probability > 0.0:
+                dropout = self.rng.random() < self.s.dropout_probability
+            if dropout:
                 sample = self._held
         self._held = sample
         self._queue.append(sample)

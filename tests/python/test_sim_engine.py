@@ -1,0 +1,169 @@
+"""The simulation's two inner loops (virtmech/sim/inner.py): the compiled one gives the
+Python reference's log, the hand's plan is the per-cycle intent, and the compiled loop
+leaves MuJoCo's global state as it found it."""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import os
+
+import numpy as np
+import pytest
+
+import virtmech as vm
+
+mujoco = pytest.importorskip("mujoco")
+
+from virtmech.scenarios import load  # noqa: E402
+from virtmech.sim.human import PLAN_COLUMNS, HandImpedance, Intent  # noqa: E402
+from virtmech.sim.loop import run  # noqa: E402
+
+# every sensor effect on, so the compiled sensor model is compared as well
+SENSORS = {
+    "noise_rad": 2e-4,
+    "delay_cycles": 2,
+    "dropout_probability": 0.05,
+    "velocity_cutoff_hz": 60.0,
+}
+
+
+@pytest.mark.parametrize(
+    "name, duration",
+    [("omni-fig11", 0.8), ("omni-fig10", 0.4), ("planar3r-fig10", 0.5)],
+)
+def test_compiled_loop_gives_the_python_reference_log(name, duration):
+    s = load(name).with_overrides(duration_s=duration, sensors=SENSORS)
+    a = run(s, engine="compiled")
+    b = run(s, engine="python")
+    assert a.columns == b.columns and a.log.shape == b.log.shape
+    # the same physics, sensors, controller and hand, cycle by cycle: differences are the
+    # rounding of two implementations of the same formulas (MuJoCo's friction makes the
+    # state sensitive, so a loose bound on the state is still a strong check)
+    assert np.isfinite(a.log[:, a.columns.index("tau0")]).all()
+    diff = np.abs(a.log - b.log)
+    diff[np.isnan(a.log) & np.isnan(b.log)] = 0.0
+    assert diff.max() < 1e-9, a.columns[int(np.argmax(diff.max(axis=0)))]
+    # the run was not trivial: the hand moved the handle and the device pushed back
+    assert np.ptp(a.col("px")) > 1e-3 or np.ptp(a.col("py")) > 1e-3
+    assert np.abs(a.col("fx")).max() > 0.05 or np.abs(a.col("fy")).max() > 0.05
+    # the sensor settings took effect: measured positions are off the encoder grid by noise,
+    # delayed, and not always equal to the true ones
+    assert np.abs(a.col("qm0") - a.col("q0")).max() > 1e-5
+
+
+def test_the_run_records_its_engine_and_refuses_an_unknown_one():
+    s = load("omni-fig9").with_overrides(duration_s=0.02)
+    assert run(s).info["physics"]["engine"] == "compiled"
+    with pytest.raises(ValueError, match="engine"):
+        run(s, engine="cython")
+
+
+SEGMENTS = [
+    {"action": "hold", "start_s": 0.0, "duration_s": 0.1},
+    {
+        "action": "follow",
+        "start_s": 0.1,
+        "duration_s": 0.2,
+        "theta": [0.2, 0.6],
+        "orientation": "path",
+    },
+    {"action": "twist", "start_s": 0.3, "duration_s": 0.2, "angle_deg": 25.0, "axis": "normal"},
+    {
+        "action": "push",
+        "start_s": 0.5,
+        "duration_s": 0.2,
+        "force": [0.3, 0.0, 1.5],
+        "force_frame": "handle",
+        "ramp_s": 0.05,
+        "orientation": "passive",
+    },
+    {
+        "action": "follow",
+        "start_s": 0.7,
+        "duration_s": 0.2,
+        "offsets": [[0.01, 0.0, 0.0], [0.01, 0.02, 0.0]],
+        "force": [0.0, 1.0, 0.0],
+    },
+    {"action": "resist", "start_s": 0.9, "duration_s": 0.1, "angle_deg": -10.0},
+]
+
+
+def test_the_hand_plan_is_the_per_cycle_intent():
+    arm = vm.PlanarArm([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], 0.1)
+    T0 = arm.forward([0.2])
+    hand = HandImpedance()
+    T = 1e-3
+    a = Intent(SEGMENTS, hand, arm, T0, T)
+    b = Intent(SEGMENTS, hand, arm, T0, T)
+    N = 1100
+    # a handle pose that moves, so segment starts that take the handle's pose are checked
+    handle = [arm.forward([0.2 + 0.3 * k / N]) for k in range(N)]
+    cuts = sorted(set(a.start_cycles(N)) | {0, 37, 400, N})
+    assert {100, 300, 500, 700, 900} <= set(cuts)
+    rows = np.vstack([a.plan(k0, k1, handle[k0]) for k0, k1 in zip(cuts[:-1], cuts[1:])])
+    assert rows.shape == (N, len(PLAN_COLUMNS))
+    for k in range(N):
+        tg = b.update(k * T, handle[k])
+        r = rows[k]
+        np.testing.assert_allclose(r[0:3], tg.p, atol=1e-15)
+        np.testing.assert_allclose(r[3:12].reshape(3, 3), tg.R, atol=1e-14)
+        np.testing.assert_allclose(r[12:15], tg.v, atol=1e-9)
+        np.testing.assert_allclose(r[15:18], tg.w, atol=1e-9)
+        assert (r[18], r[19], r[20], r[21]) == (tg.k_t, tg.b_t, tg.k_r, tg.b_r)
+        force = handle[k][:3, :3] @ r[22:25] if r[25] else r[22:25]
+        np.testing.assert_allclose(force, tg.force, atol=1e-14)
+        assert r[26] == tg.segment
+    # and the plan is not constant: every kind of segment moved something
+    assert np.ptp(rows[:, 0]) > 0.01 and np.ptp(rows[:, 15:18]) > 0.1 and rows[:, 25].any()
+
+
+def test_a_plan_across_a_segment_start_is_refused():
+    arm = vm.PlanarArm([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], 0.1)
+    T0 = arm.forward([0.2])
+    intent = Intent(SEGMENTS, HandImpedance(), arm, T0, 1e-3)
+    with pytest.raises(ValueError, match="start_cycles"):
+        intent.plan(0, 150, T0)
+
+
+def _mujoco_timer() -> ctypes.c_void_p:
+    here = os.path.dirname(mujoco.__file__)
+    lib = ctypes.CDLL(sorted(glob.glob(os.path.join(here, "libmujoco.so*")))[0])
+    return ctypes.c_void_p.in_dll(lib, "mjcb_time")
+
+
+@pytest.mark.skipif(
+    not glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco.so*")),
+    reason="MuJoCo's library is not a .so on this platform",
+)
+def test_the_compiled_loop_restores_mujocos_timer_callback():
+    before = _mujoco_timer().value
+    run(load("omni-fig9").with_overrides(duration_s=0.05))
+    assert _mujoco_timer().value == before
+
+
+def test_the_kernel_names_a_wrong_array():
+    from virtmech.sim.inner import CompiledLoop
+    from virtmech.sim.sensors import Sensors, SensorSettings
+
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body><joint type="hinge"/><geom size="0.1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    data = mujoco.MjData(model)
+    ctrl = vm.Controller(vm.PhantomOmni(), vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.08))
+    with pytest.raises(ValueError, match="qpos: expected shape \\(6,\\)"):
+        CompiledLoop(
+            ctrl,
+            model,
+            data,
+            coupling_inv=np.eye(6),
+            coupling_offset=np.zeros(6),
+            actuated=[0, 1, 2],
+            substeps=4,
+            period_s=1e-3,
+            comp_bodies=[],
+            comp_masses=[],
+            gravity=np.zeros(3),
+            sensors=Sensors(SensorSettings(counts_per_rev=0), 6, 1e-3, None),
+        )
