@@ -195,6 +195,29 @@ void bind_kinematics(nb::class_<T>& cls) {
           },
           "x"_a, "Handle pose (4, 4) at joint values x (dof,).")
       .def(
+          "forward_many",
+          [](const T& self, nb::handle X) {
+            const std::string expected = "an array of shape (m, " + std::to_string(self.dof()) + ")";
+            nb::object a = as_array("X", X, expected.c_str());
+            const auto nd = nb::cast<long>(a.attr("ndim"));
+            const nb::tuple shp = nb::cast<nb::tuple>(a.attr("shape"));
+            if (nd != 2 || nb::cast<long>(shp[1]) != self.dof()) {
+              throw nb::value_error(
+                  ("X: expected " + expected + ", got shape " + shape_of(a)).c_str());
+            }
+            const auto rows = static_cast<size_t>(nb::cast<long>(shp[0]));
+            const auto in = nb::cast<nb::ndarray<const double, nb::ndim<2>, nb::c_contig>>(a);
+            auto* out = new double[rows * 16];
+            nb::capsule owner(out, [](void* p) noexcept { delete[] static_cast<double*>(p); });
+            Pose P;
+            for (size_t r = 0; r < rows; ++r) {
+              self.forward(in.data() + r * size_t(self.dof()), P);
+              Eigen::Map<Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(out + 16 * r) = P.matrix();
+            }
+            return nb::ndarray<nb::numpy, double, nb::ndim<3>>(out, {rows, 4, 4}, owner);
+          },
+          "X"_a, "Handle poses (m, 4, 4) at the m rows of joint values X (m, dof).")
+      .def(
           "jacobian",
           [](const T& self, nb::handle x) {
             const JointVector v = joint_values("x", x, self.dof());

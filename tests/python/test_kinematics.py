@@ -99,3 +99,24 @@ def test_gimbal_offset_and_sign_map_driver_angles():
     driver = q.copy()
     driver[3:] = np.array([-1, 1, -1]) * q[3:] + [0.3, -0.2, 1.0]
     np.testing.assert_allclose(mapped.forward(driver), plain.forward(q), atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        vm.PhantomOmni,
+        lambda: vm.Probe([0, 0, -0.05], [0, 0, 1], 0.1),
+        lambda: vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.1),
+    ],
+)
+def test_forward_many_is_forward_row_by_row(make):
+    kin = make()
+    rng = np.random.default_rng(4)
+    X = np.array([random_within(rng, kin.lower, kin.upper) for _ in range(9)])
+    poses = kin.forward_many(X)
+    assert poses.shape == (9, 4, 4)
+    for x, T in zip(X, poses):
+        np.testing.assert_array_equal(T, kin.forward(x))
+    assert kin.forward_many(np.zeros((0, kin.dof))).shape == (0, 4, 4)
+    with pytest.raises(ValueError, match=rf"X: expected an array of shape \(m, {kin.dof}\)"):
+        kin.forward_many(np.zeros((3, kin.dof + 1)))

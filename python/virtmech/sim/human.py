@@ -263,11 +263,10 @@ class Intent:
         if "theta" in seg:
             a, b = seg["theta"]
             T0 = self._path0
-            for i, si in enumerate(s):
-                Ts = self.mechanism.forward(np.array([a + si * (b - a)]))
-                p[i] += Ts[:3, 3] - T0[:3, 3]
-                if seg.get("orientation", "hold") == "path":
-                    R[i] = Ts[:3, :3] @ T0[:3, :3].T @ self._start_R
+            Ts = self.mechanism.forward_many((a + s * (b - a))[:, None])
+            p += Ts[:, :3, 3] - T0[:3, 3]
+            if seg.get("orientation", "hold") == "path":
+                R = Ts[:, :3, :3] @ (T0[:3, :3].T @ self._start_R)
         else:
             pts = np.vstack([np.zeros(3), np.asarray(seg["offsets"], dtype=float)])
             seglen = np.linalg.norm(np.diff(pts, axis=0), axis=1)
