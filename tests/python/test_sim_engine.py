@@ -167,3 +167,29 @@ def test_the_kernel_names_a_wrong_array():
             gravity=np.zeros(3),
             sensors=Sensors(SensorSettings(counts_per_rev=0), 6, 1e-3, None),
         )
+
+
+@pytest.mark.parametrize("device", ["omni", "planar3r"])
+def test_step1_then_step2_is_mj_step_on_the_device_models(device):
+    # the loop sets the motors and the hand's force between mj_step1 and mj_step2, which
+    # must be mj_step with those inputs (the implicitfast integrator included)
+    from virtmech.sim.model import build_mjcf, compile_model
+
+    dev = vm.PhantomOmni() if device == "omni" else vm.Planar3R(0.25, 0.15)
+    model = compile_model(build_mjcf(dev))
+    d1, d2 = mujoco.MjData(model), mujoco.MjData(model)
+    rng = np.random.default_rng(7)
+    q0 = 0.3 * rng.normal(size=model.nq)
+    for d in (d1, d2):
+        d.qpos[:] = q0
+    for _ in range(500):
+        u = 0.2 * rng.normal(size=model.nu)
+        f = 0.02 * rng.normal(size=model.nv)
+        d1.ctrl[:], d1.qfrc_applied[:] = u, f
+        mujoco.mj_step(model, d1)
+        mujoco.mj_step1(model, d2)
+        d2.ctrl[:], d2.qfrc_applied[:] = u, f
+        mujoco.mj_step2(model, d2)
+    assert np.ptp(d1.qpos) > 0.01  # it moved
+    np.testing.assert_array_equal(d1.qpos, d2.qpos)
+    np.testing.assert_array_equal(d1.qvel, d2.qvel)

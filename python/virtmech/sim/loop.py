@@ -120,7 +120,8 @@ def _seeds(device) -> list[np.ndarray]:
 
 def solve_ik(device, T: np.ndarray, length_scale: float = 0.1, iterations: int = 200):
     """Joint values (within the device's limits) whose handle pose is closest to T, by
-    damped least squares from several seeds; returns (q, residual pose error (6,))."""
+    damped least squares from several seeds, tried in order until one reaches T (else the
+    closest); returns (q, residual pose error (6,))."""
     lo, hi = np.asarray(device.lower), np.asarray(device.upper)
     W = np.array([1, 1, 1, length_scale, length_scale, length_scale])
     best, best_err = None, None
@@ -142,6 +143,8 @@ def solve_ik(device, T: np.ndarray, length_scale: float = 0.1, iterations: int =
         err = vm.pose_error(T, device.forward(q))
         if best is None or np.linalg.norm(err * W) < np.linalg.norm(best_err * W):
             best, best_err = q, err
+        if np.linalg.norm(best_err * W) < 1e-12:
+            break  # the seeds are in order of preference: the first that reaches T wins
     return best, best_err
 
 
