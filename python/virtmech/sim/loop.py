@@ -420,7 +420,7 @@ def run(
     columns = log_columns(n, m)
     K = len(kernel_columns(n, m))
     N = int(round(S["duration_s"] / T_ctrl)) + 1
-    log = np.zeros((N, len(columns)))
+    cycles_log = np.zeros((N, K))  # what the inner loop writes, row by row
     bar = Progress(scenario.name, S["duration_s"], progress)
 
     sensor_settings = SensorSettings(**S["sensors"])
@@ -444,7 +444,7 @@ def run(
 
     # stretches of cycles: split where a segment starts (the hand's plan needs the handle's
     # pose there) and every `chunk` cycles (progress)
-    chunk = 250
+    chunk = 1000
     cuts = sorted(set(intent.start_cycles(N)) | set(range(0, N, chunk)) | {N})
     wall0 = time.perf_counter()
     for k0, k1 in zip(cuts[:-1], cuts[1:]):
@@ -461,15 +461,15 @@ def run(
             if sensor_settings.dropout_probability > 0.0
             else np.zeros(rows)
         )
-        block = np.zeros((rows, K))
-        inner.run(k0, plan, noise, dropout, block)
-        log[k0:k1, :K] = block
+        inner.run(k0, plan, noise, dropout, cycles_log[k0:k1])
         bar.update(k1 * T_ctrl)
     wall = time.perf_counter() - wall0
     bar.update(S["duration_s"])
     bar.close(wall)
 
     # what follows from the logged state alone, for all cycles at once
+    log = np.empty((N, len(columns)))
+    log[:, :K] = cycles_log
     c = {name: i for i, name in enumerate(columns)}
     p_h = log[:, c["px"] : c["px"] + 3]
     z_h = log[:, c["sx"] : c["sx"] + 3]
