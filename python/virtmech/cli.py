@@ -2,6 +2,7 @@
 
 virtmech demo [--out DIR]             every shipped scenario, summary.json, index.html
 virtmech run SCENARIO [--out DIR]     one scenario (a TOML path or a shipped name)
+             [--engine python]        ... with the simulation loop in Python (the reference)
 virtmech scenarios                    the shipped scenarios
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
 """
@@ -14,12 +15,12 @@ import time
 from pathlib import Path
 
 
-def _run_one(scenario, out_dir: Path, seed, progress: bool) -> dict:
+def _run_one(scenario, out_dir: Path, seed, progress: bool, engine: str = "compiled") -> dict:
     from . import sim
     from .sim.output import metrics, write_run
     from .viz import write_figures
 
-    result = sim.run(scenario, seed=seed, progress=progress)
+    result = sim.run(scenario, seed=seed, progress=progress, engine=engine)
     write_run(result, out_dir)
     write_figures(result, out_dir)
     return metrics(result)
@@ -47,7 +48,7 @@ def cmd_run(args) -> int:
         print(f"virtmech run: {e}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path("out") / s.name
-    m = _run_one(s, out, args.seed, not args.quiet)
+    m = _run_one(s, out, args.seed, not args.quiet, args.engine)
     print(f"{s.name}: wrote {out}/log.csv, run.json, plane.png, time.png")
     _print_metrics({s.name: m})
     return 0
@@ -124,6 +125,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
     r.add_argument("--duration", type=float, help="override duration_s [s]")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument(
+        "--engine",
+        choices=("compiled", "python"),
+        default="compiled",
+        help="the simulation loop: compiled (default) or the Python reference (slower)",
+    )
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)
     return p

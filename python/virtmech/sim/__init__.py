@@ -3,8 +3,9 @@ virtmech`` does not import MuJoCo).
 
 Stable API (docs/simulation.md):
 
-- ``run(scenario, seed=None, progress=False) -> SimResult``: runs a scenario (a
-  ``virtmech.scenarios.Scenario``, a shipped name or a TOML path) headless.
+- ``run(scenario, seed=None, progress=False, engine="compiled") -> SimResult``: runs a
+  scenario (a ``virtmech.scenarios.Scenario``, a shipped name or a TOML path) headless;
+  ``engine="python"`` runs the Python reference of the compiled loop.
 - ``SimResult``: ``.log`` (one row per control cycle), ``.columns``, ``.col(name)``,
   ``.sim_time_s``, ``.wall_time_s``, ``.info``; ``virtmech.sim.output.write_run`` writes
   ``log.csv`` and ``run.json``.
@@ -18,10 +19,10 @@ from typing import Any
 __all__ = ["SimResult", "build_mjcf", "run"]
 
 
-def run(scenario: Any, seed: int | None = None, progress: bool = False):
+def run(scenario: Any, seed: int | None = None, progress: bool = False, engine: str = "compiled"):
     from .loop import run as _run
 
-    return _run(scenario, seed=seed, progress=progress)
+    return _run(scenario, seed=seed, progress=progress, engine=engine)
 
 
 def __getattr__(name: str) -> Any:
