@@ -315,11 +315,13 @@ void bind_sim_kernel(nb::module_& m) {
                     std::uintptr_t, F64, F64, F64, F64, F64, CF64, CF64, std::vector<int>, int,
                     double, std::vector<int>, std::vector<double>, CF64, double, int, double>(),
            "controller"_a, "model"_a, "data"_a, "mj_step1"_a, "mj_step2"_a, "mj_jac_body_com"_a,
-           "qpos"_a, "qvel"_a, "ctrl"_a, "qfrc_applied"_a, "actuator_force"_a, "coupling_inv"_a,
+           // arrays the loop writes into must be the arrays themselves, never converted copies
+           "qpos"_a.noconvert(), "qvel"_a.noconvert(), "ctrl"_a.noconvert(),
+           "qfrc_applied"_a.noconvert(), "actuator_force"_a.noconvert(), "coupling_inv"_a,
            "coupling_offset"_a, "actuated"_a, "substeps"_a, "period_s"_a, "comp_bodies"_a,
            "comp_masses"_a, "gravity"_a, "quantum"_a, "delay_cycles"_a, "velocity_alpha"_a,
            nb::keep_alive<1, 2>())
       .def_prop_ro("columns", &SimKernel::columns, "Log columns one cycle writes.")
-      .def("run", &SimKernel::run, "k0"_a, "plan"_a, "noise"_a, "dropout"_a, "log"_a,
+      .def("run", &SimKernel::run, "k0"_a, "plan"_a, "noise"_a, "dropout"_a, "log"_a.noconvert(),
            "Runs plan.shape[0] control cycles from cycle k0, writing one log row each.");
 }

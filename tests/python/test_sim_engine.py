@@ -193,3 +193,46 @@ def test_step1_then_step2_is_mj_step_on_the_device_models(device):
     assert np.ptp(d1.qpos) > 0.01  # it moved
     np.testing.assert_array_equal(d1.qpos, d2.qpos)
     np.testing.assert_array_equal(d1.qvel, d2.qvel)
+
+
+def test_the_kernel_writes_only_into_the_callers_arrays():
+    from virtmech.sim.inner import CompiledLoop
+    from virtmech.sim.model import build_mjcf, compile_model
+    from virtmech.sim.sensors import Sensors, SensorSettings
+
+    omni = vm.PhantomOmni()
+    built = build_mjcf(omni)
+    model = compile_model(built)
+    data = mujoco.MjData(model)
+    data.qpos[:] = built.coupling.to_chain(omni.home)
+    ctrl = vm.Controller(omni, vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.08))
+    loop = CompiledLoop(
+        ctrl,
+        model,
+        data,
+        coupling_inv=built.coupling.Cinv,
+        coupling_offset=built.coupling.c0,
+        actuated=[0, 1, 2],
+        substeps=4,
+        period_s=1e-3,
+        comp_bodies=[],
+        comp_masses=[],
+        gravity=np.zeros(3),
+        sensors=Sensors(SensorSettings(counts_per_rev=0), 6, 1e-3, None),
+    )
+    plan = np.zeros((3, len(PLAN_COLUMNS)))
+    plan[:, 3:12] = np.eye(3).ravel()
+    noise, dropout = np.zeros((3, 6)), np.zeros(3)
+    cols = loop._kernel.columns
+    with pytest.raises(TypeError):  # a converted copy would swallow the rows
+        loop.run(0, plan, noise, dropout, np.zeros((3, cols), dtype=np.float32))
+    with pytest.raises(TypeError):
+        loop.run(0, plan, noise, dropout, np.zeros((3, 2 * cols))[:, ::2])
+    with pytest.raises(ValueError, match="plan: expected shape \\(3, 27\\)"):
+        loop.run(0, plan[:, :20].copy(), noise, dropout, np.zeros((3, cols)))
+    with pytest.raises(ValueError, match="log: expected shape \\(3, "):
+        loop.run(0, plan, noise, dropout, np.zeros((2, cols)))
+    log = np.zeros((3, cols))
+    loop.run(0, plan, noise, dropout, log)
+    np.testing.assert_allclose(log[:, 0], [0.0, 1e-3, 2e-3])  # t of each cycle
+    np.testing.assert_allclose(log[0, 1:7], omni.home, atol=1e-12)  # q at the first cycle
