@@ -144,7 +144,6 @@ def test_the_compiled_loop_restores_mujocos_timer_callback():
 
 def test_the_kernel_names_a_wrong_array():
     from virtmech.sim.inner import CompiledLoop
-    from virtmech.sim.sensors import Sensors, SensorSettings
 
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><worldbody><body><joint type="hinge"/><geom size="0.1"/></body>'
@@ -153,20 +152,23 @@ def test_the_kernel_names_a_wrong_array():
     data = mujoco.MjData(model)
     ctrl = vm.Controller(vm.PhantomOmni(), vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.08))
     with pytest.raises(ValueError, match="qpos: expected shape \\(6,\\)"):
-        CompiledLoop(
-            ctrl,
-            model,
-            data,
-            coupling_inv=np.eye(6),
-            coupling_offset=np.zeros(6),
-            actuated=[0, 1, 2],
-            substeps=4,
-            period_s=1e-3,
-            comp_bodies=[],
-            comp_masses=[],
-            gravity=np.zeros(3),
-            sensors=Sensors(SensorSettings(counts_per_rev=0), 6, 1e-3, None),
-        )
+        CompiledLoop(ctrl, model, data, **_omni_loop_settings(np.eye(6), np.zeros(6)))
+
+
+def _omni_loop_settings(Cinv, c0) -> dict:
+    from virtmech.sim.sensors import Sensors, SensorSettings
+
+    return dict(
+        coupling_inv=Cinv,
+        coupling_offset=c0,
+        actuated=[0, 1, 2],
+        substeps=4,
+        period_s=1e-3,
+        comp_bodies=[],
+        comp_masses=[],
+        gravity=np.zeros(3),
+        sensors=Sensors(SensorSettings(counts_per_rev=0), 6, 1e-3, None),
+    )
 
 
 @pytest.mark.parametrize("device", ["omni", "planar3r"])
@@ -198,7 +200,6 @@ def test_step1_then_step2_is_mj_step_on_the_device_models(device):
 def test_the_kernel_writes_only_into_the_callers_arrays():
     from virtmech.sim.inner import CompiledLoop
     from virtmech.sim.model import build_mjcf, compile_model
-    from virtmech.sim.sensors import Sensors, SensorSettings
 
     omni = vm.PhantomOmni()
     built = build_mjcf(omni)
@@ -207,18 +208,7 @@ def test_the_kernel_writes_only_into_the_callers_arrays():
     data.qpos[:] = built.coupling.to_chain(omni.home)
     ctrl = vm.Controller(omni, vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.08))
     loop = CompiledLoop(
-        ctrl,
-        model,
-        data,
-        coupling_inv=built.coupling.Cinv,
-        coupling_offset=built.coupling.c0,
-        actuated=[0, 1, 2],
-        substeps=4,
-        period_s=1e-3,
-        comp_bodies=[],
-        comp_masses=[],
-        gravity=np.zeros(3),
-        sensors=Sensors(SensorSettings(counts_per_rev=0), 6, 1e-3, None),
+        ctrl, model, data, **_omni_loop_settings(built.coupling.Cinv, built.coupling.c0)
     )
     plan = np.zeros((3, len(PLAN_COLUMNS)))
     plan[:, 3:12] = np.eye(3).ravel()
