@@ -35,7 +35,7 @@ import numpy as np
 
 import virtmech as vm
 
-from .human import PLAN_COLUMNS
+from .human import PLAN_COLUMNS, HandTarget, hand_wrench
 
 _mujoco_functions: dict[str, int] | None = None
 _mujoco_timer: ctypes.c_void_p | None = None
@@ -142,11 +142,20 @@ class PythonLoop:
         assert len(PLAN_COLUMNS) == 27
 
     @staticmethod
-    def _hand(plan, T, tw, force):
-        R_a = plan[3:12].reshape(3, 3)
-        F = plan[18] * (plan[0:3] - T[:3, 3]) + plan[19] * (plan[12:15] - tw[:3]) + force
-        M = plan[20] * vm.so3_log(R_a @ T[:3, :3].T) + plan[21] * (plan[15:18] - tw[3:])
-        return np.concatenate([F, M])
+    def _target(row, force) -> HandTarget:
+        """The hand's target of a plan row (human.PLAN_COLUMNS), with its push in world axes."""
+        return HandTarget(
+            p=row[0:3],
+            R=row[3:12].reshape(3, 3),
+            v=row[12:15],
+            w=row[15:18],
+            k_t=row[18],
+            b_t=row[19],
+            k_r=row[20],
+            b_r=row[21],
+            force=force,
+            segment=int(row[26]),
+        )
 
     def run(self, k0: int, plan, noise, dropout, log) -> None:
         import mujoco
@@ -174,8 +183,9 @@ class PythonLoop:
                         cmd[self.act] -= (self.CT @ g_s)[self.act]
                     d.ctrl[:] = cmd[self.act]
                     force = row[22:25] if row[25] == 0.0 else T_h[:3, :3] @ row[22:25]
+                    target = self._target(row, force)
                 tw = J @ dq
-                W = self._hand(row, T, tw, force)
+                W = hand_wrench(target, T, tw)
                 if s == 0:
                     tw0, W0 = tw, W
                 d.qfrc_applied[:] = self.CinvT @ (J.T @ W)
