@@ -96,7 +96,7 @@ std::shared_ptr<const Device> device_from(const vm_device_desc& d) {
       L.max_torque = d.max_torque > 0.0 ? d.max_torque : kInf;
       if (d.stiffness > 0.0) L.stiffness = d.stiffness;
       if (d.damping > 0.0) L.damping = d.damping;
-      return std::make_shared<Device>("SerialDevice", chain, L);
+      return std::make_shared<SerialDevice>("SerialDevice", chain, L);
     }
   }
   throw std::invalid_argument("device.type: expected VM_DEVICE_PHANTOM_OMNI, VM_DEVICE_PLANAR3R "

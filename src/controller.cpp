@@ -100,7 +100,7 @@ JointVector warm_start(const Mechanism& mech, const TrackOptions& opts, const Jo
   JointVector start = theta;
   const JointVector change = theta - theta_prev;
   for (int i = 0; i < mech.dof(); ++i) {
-    const double cap = mech.chain().joint(i).type == JointType::kRevolute
+    const double cap = mech.joint_type(i) == JointType::kRevolute
                            ? opts.max_step
                            : opts.max_step_prismatic * mech.length_scale();
     if (!(std::abs(change[i]) <= kWarmStartFraction * cap)) return start;

@@ -38,24 +38,17 @@ Joint revolute(const Eigen::Vector3d& axis, const Eigen::Vector3d& at, double lo
 
 }  // namespace
 
-Device::Device(std::string name, const KinematicChain& chain, const DeviceLimits& limits)
-    : Device(std::move(name), chain, limits, JointMatrix::Identity(chain.dof(), chain.dof()),
-             JointVector::Zero(chain.dof())) {
-  coupled_ = false;
-}
-
-Device::Device(std::string name, const KinematicChain& chain, const DeviceLimits& limits,
-               const JointMatrix& coupling, const JointVector& coupling_offset)
-    : name_(std::move(name)), chain_(chain), coupling_(coupling),
-      coupling_offset_(coupling_offset) {
-  const int n = chain_.dof();
-  if (n < 1) throw std::invalid_argument("chain: expected at least one joint");
-  if (coupling_.rows() != n || coupling_.cols() != n || coupling_offset_.size() != n) {
-    throw std::invalid_argument("coupling: expected a dof x dof matrix and a dof offset");
+Device::Device(std::string name, const std::vector<JointType>& kinds,
+               const DeviceLimits& limits)
+    : name_(std::move(name)) {
+  if (kinds.empty() || kinds.size() > static_cast<size_t>(kMaxDof)) {
+    std::ostringstream os;
+    os << "joints: expected 1 to " << kMaxDof << " joints, got " << kinds.size();
+    throw std::invalid_argument(os.str());
   }
-  require_finite("coupling", Eigen::Map<const Eigen::VectorXd>(coupling_.data(), n * n));
-  require_finite("coupling_offset", coupling_offset_);
-  coupled_ = !(coupling_.isIdentity(0.0) && coupling_offset_.isZero(0.0));
+  dof_ = static_cast<int>(kinds.size());
+  const int n = dof_;
+  for (int i = 0; i < n; ++i) kinds_[static_cast<size_t>(i)] = kinds[static_cast<size_t>(i)];
 
   if (static_cast<int>(limits.actuated.size()) != n) {
     std::ostringstream os;
@@ -77,15 +70,8 @@ Device::Device(std::string name, const KinematicChain& chain, const DeviceLimits
     }
     if (!actuated_[static_cast<size_t>(i)]) torque_limit_[i] = 0.0;
   }
-  JointVector chain_lower(n), chain_upper(n);
-  for (int i = 0; i < n; ++i) {
-    chain_lower[i] = chain_.joint(i).lower;
-    chain_upper[i] = chain_.joint(i).upper;
-  }
   lower_ = to_joint_vector("lower", limits.lower, n, -kInf);
   upper_ = to_joint_vector("upper", limits.upper, n, kInf);
-  if (limits.lower.empty() && !coupled_) lower_ = chain_lower;
-  if (limits.upper.empty() && !coupled_) upper_ = chain_upper;
   for (int i = 0; i < n; ++i) {
     if (std::isnan(lower_[i]) || std::isnan(upper_[i]) || !(lower_[i] <= upper_[i])) {
       std::ostringstream os;
@@ -117,6 +103,54 @@ Device::Device(std::string name, const KinematicChain& chain, const DeviceLimits
 void Device::set_home(const JointVector& home) { home_ = home; }
 
 void Device::forward(const double* q, Pose& T) const noexcept {
+  Jacobian J;
+  forward_jacobian(q, T, J);
+}
+
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+std::vector<JointType> chain_kinds(const KinematicChain& c) {
+  std::vector<JointType> k;
+  for (int i = 0; i < c.dof(); ++i) k.push_back(c.joint(i).type);
+  return k;
+}
+
+// an uncoupled chain's joint limits are the device's unless the limits say otherwise
+DeviceLimits with_chain_limits(const KinematicChain& c, DeviceLimits L) {
+  if (L.lower.empty()) {
+    for (int i = 0; i < c.dof(); ++i) L.lower.push_back(c.joint(i).lower);
+  }
+  if (L.upper.empty()) {
+    for (int i = 0; i < c.dof(); ++i) L.upper.push_back(c.joint(i).upper);
+  }
+  return L;
+}
+
+}  // namespace
+
+SerialDevice::SerialDevice(std::string name, const KinematicChain& chain,
+                           const DeviceLimits& limits)
+    : SerialDevice(std::move(name), chain, with_chain_limits(chain, limits),
+                   JointMatrix::Identity(chain.dof(), chain.dof()),
+                   JointVector::Zero(chain.dof())) {}
+
+SerialDevice::SerialDevice(std::string name, const KinematicChain& chain,
+                           const DeviceLimits& limits, const JointMatrix& coupling,
+                           const JointVector& coupling_offset)
+    : Device(std::move(name), chain_kinds(chain), limits), chain_(chain), coupling_(coupling),
+      coupling_offset_(coupling_offset) {
+  const int n = chain_.dof();
+  if (coupling_.rows() != n || coupling_.cols() != n || coupling_offset_.size() != n) {
+    throw std::invalid_argument("coupling: expected a dof x dof matrix and a dof offset");
+  }
+  require_finite("coupling", Eigen::Map<const Eigen::VectorXd>(coupling_.data(), n * n));
+  require_finite("coupling_offset", coupling_offset_);
+  coupled_ = !(coupling_.isIdentity(0.0) && coupling_offset_.isZero(0.0));
+}
+
+void SerialDevice::forward(const double* q, Pose& T) const noexcept {
   if (!coupled_) {
     chain_.forward(q, T);
     return;
@@ -127,7 +161,7 @@ void Device::forward(const double* q, Pose& T) const noexcept {
   chain_.forward(s.data(), T);
 }
 
-void Device::forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept {
+void SerialDevice::forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept {
   if (!coupled_) {
     chain_.forward_jacobian(q, T, J);
     return;
@@ -141,7 +175,7 @@ void Device::forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexc
   J.noalias() = Js * coupling_;
 }
 
-// ---------------------------------------------------------------------------------------
+
 
 namespace {
 
@@ -209,8 +243,8 @@ JointVector omni_offset(const PhantomOmniParams& p) {
 }  // namespace
 
 PhantomOmni::PhantomOmni(const PhantomOmniParams& params)
-    : Device("PhantomOmni", omni_chain(params), omni_limits(params), omni_coupling(params),
-             omni_offset(params)),
+    : SerialDevice("PhantomOmni", omni_chain(params), omni_limits(params),
+                   omni_coupling(params), omni_offset(params)),
       params_(params) {
   // a pose in the middle of the workspace, stylus tilted down
   JointVector home(6);
@@ -252,8 +286,8 @@ DeviceLimits planar3r_limits(double torque_limit, double max_force) {
 
 Planar3R::Planar3R(double link1, double link2, const Pose& base, double torque_limit,
                    double max_force)
-    : Device("Planar3R", planar3r_chain(link1, link2, base),
-             planar3r_limits(torque_limit, max_force)),
+    : SerialDevice("Planar3R", planar3r_chain(link1, link2, base),
+                   planar3r_limits(torque_limit, max_force)),
       link1_(link1), link2_(link2) {}
 
 }  // namespace virtmech

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 
 #include "virtmech/se3.hpp"
@@ -57,25 +58,63 @@ std::vector<Joint> wrist_rrr() {
 
 }  // namespace
 
-Mechanism::Mechanism(std::string type, KinematicChain chain, double length_scale,
-                     JointVector home)
-    : type_(std::move(type)), chain_(std::move(chain)), length_scale_(length_scale),
-      home_(std::move(home)) {
+Mechanism::Mechanism(std::string type, const std::vector<JointType>& kinds,
+                     const JointVector& lower, const JointVector& upper, const JointVector& home,
+                     double length_scale)
+    : type_(std::move(type)), lower_(lower), upper_(upper), home_(home),
+      length_scale_(length_scale) {
   require_positive("length_scale", length_scale_);
-  if (home_.size() != chain_.dof()) throw std::invalid_argument("home: size mismatch");
+  if (kinds.empty() || kinds.size() > static_cast<size_t>(kMaxDof)) {
+    std::ostringstream os;
+    os << "joints: expected 1 to " << kMaxDof << " joints, got " << kinds.size();
+    throw std::invalid_argument(os.str());
+  }
+  dof_ = static_cast<int>(kinds.size());
+  for (int i = 0; i < dof_; ++i) kinds_[static_cast<size_t>(i)] = kinds[static_cast<size_t>(i)];
+  if (lower_.size() != dof_ || upper_.size() != dof_ || home_.size() != dof_) {
+    std::ostringstream os;
+    os << "lower/upper/home: expected " << dof_ << " values each, got " << lower_.size() << ", "
+       << upper_.size() << ", " << home_.size();
+    throw std::invalid_argument(os.str());
+  }
+  require_finite("home", home_);
+  for (int i = 0; i < dof_; ++i) {
+    if (std::isnan(lower_[i]) || std::isnan(upper_[i]) || !(lower_[i] <= upper_[i])) {
+      std::ostringstream os;
+      os << "lower/upper[" << i << "]: expected lower <= upper, got " << lower_[i] << " and "
+         << upper_[i];
+      throw std::invalid_argument(os.str());
+    }
+    home_[i] = std::min(std::max(home_[i], lower_[i]), upper_[i]);
+  }
 }
 
-JointVector Mechanism::lower() const {
-  JointVector v(dof());
-  for (int i = 0; i < dof(); ++i) v[i] = chain_.joint(i).lower;
+void Mechanism::forward(const double* x, Pose& T) const noexcept {
+  Jacobian J;
+  forward_jacobian(x, T, J);
+}
+
+namespace {
+
+std::vector<JointType> chain_kinds(const KinematicChain& c) {
+  std::vector<JointType> k;
+  for (int i = 0; i < c.dof(); ++i) k.push_back(c.joint(i).type);
+  return k;
+}
+
+JointVector chain_limit(const KinematicChain& c, bool upper) {
+  JointVector v(c.dof());
+  for (int i = 0; i < c.dof(); ++i) v[i] = upper ? c.joint(i).upper : c.joint(i).lower;
   return v;
 }
 
-JointVector Mechanism::upper() const {
-  JointVector v(dof());
-  for (int i = 0; i < dof(); ++i) v[i] = chain_.joint(i).upper;
-  return v;
-}
+}  // namespace
+
+ChainMechanism::ChainMechanism(std::string type, KinematicChain chain, double length_scale,
+                               const JointVector& home)
+    : Mechanism(std::move(type), chain_kinds(chain), chain_limit(chain, false),
+                chain_limit(chain, true), home, length_scale),
+      chain_(std::move(chain)) {}
 
 // ---------------------------------------------------------------------------------------
 
@@ -108,7 +147,7 @@ static Eigen::Vector3d checked_zero_direction(const Eigen::Vector3d& d, const Ei
 
 PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal, double length,
                      const Eigen::Vector3d& zero_direction)
-    : Mechanism("PlanarArm",
+    : ChainMechanism("PlanarArm",
                 planar_arm_chain(pivot, require_unit("normal", normal), checked_length(length),
                                  checked_zero_direction(zero_direction, normal.normalized())),
                 length, JointVector::Zero(1)),
@@ -121,58 +160,80 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
 
 // ---------------------------------------------------------------------------------------
 
+// the tip's lift-off along the surface normal (local z of the tangent frame): a prismatic
+// joint with lower limit 0, so the surface pushes but never pulls
+static Joint lift_off() {
+  Joint j = make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitZ());
+  j.lower = 0.0;
+  return j;
+}
+
 static KinematicChain probe_chain(const Eigen::Vector3d& p, const Eigen::Vector3d& n,
-                                  const Eigen::Vector3d& t1, double length) {
+                                  const Eigen::Vector3d& t1, double length, bool unilateral) {
   std::vector<Joint> joints = {make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitX()),
                                make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitY())};
+  if (unilateral) joints.push_back(lift_off());
   for (const Joint& j : wrist_rrr()) joints.push_back(j);
   return KinematicChain(tangent_frame(p, n, t1), joints, handle_behind_tip(length));
 }
 
 Probe::Probe(const Eigen::Vector3d& plane_point, const Eigen::Vector3d& plane_normal,
-             double length, const Eigen::Vector3d& tangent)
-    : Mechanism("Probe",
-                probe_chain(plane_point, require_unit("plane_normal", plane_normal),
-                            tangent_or_default("tangent", tangent, plane_normal.normalized()),
-                            checked_length(length)),
-                length, JointVector::Zero(5)),
+             double length, const Eigen::Vector3d& tangent, bool unilateral)
+    : ChainMechanism("Probe",
+                     probe_chain(plane_point, require_unit("plane_normal", plane_normal),
+                                 tangent_or_default("tangent", tangent, plane_normal.normalized()),
+                                 checked_length(length), unilateral),
+                     length, JointVector::Zero(unilateral ? 6 : 5)),
       point_(plane_point), normal_(plane_normal.normalized()),
       tangent_(tangent_or_default("tangent", tangent, plane_normal.normalized())),
-      length_(length) {
+      length_(length), unilateral_(unilateral) {
   require_finite("plane_point", plane_point);
 }
 
+static std::vector<Joint> pivot_joints(bool unilateral) {
+  std::vector<Joint> joints;
+  if (unilateral) joints.push_back(lift_off());
+  for (const Joint& j : wrist_rrr()) joints.push_back(j);
+  return joints;
+}
+
 PointPivot::PointPivot(const Eigen::Vector3d& point, const Eigen::Vector3d& normal,
-                       double length, const Eigen::Vector3d& tangent)
-    : Mechanism("PointPivot",
-                KinematicChain(tangent_frame(point, require_unit("normal", normal),
-                                             tangent_or_default("tangent", tangent,
-                                                                normal.normalized())),
-                               wrist_rrr(), handle_behind_tip(checked_length(length))),
-                length, JointVector::Zero(3)),
+                       double length, const Eigen::Vector3d& tangent, bool unilateral)
+    : ChainMechanism("PointPivot",
+                     KinematicChain(tangent_frame(point, require_unit("normal", normal),
+                                                  tangent_or_default("tangent", tangent,
+                                                                     normal.normalized())),
+                                    pivot_joints(unilateral),
+                                    handle_behind_tip(checked_length(length))),
+                     length, JointVector::Zero(unilateral ? 4 : 3)),
       point_(point), normal_(normal.normalized()),
-      tangent_(tangent_or_default("tangent", tangent, normal.normalized())), length_(length) {
+      tangent_(tangent_or_default("tangent", tangent, normal.normalized())), length_(length),
+      unilateral_(unilateral) {
   require_finite("point", point);
 }
 
-static std::vector<Joint> line_joints() {
+// the line is the tangent frame's x axis, the normal its z axis
+static std::vector<Joint> line_joints(bool unilateral) {
   std::vector<Joint> joints = {make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitX())};
+  if (unilateral) joints.push_back(lift_off());
   for (const Joint& j : wrist_rrr()) joints.push_back(j);
   return joints;
 }
 
 LineGuide::LineGuide(const Eigen::Vector3d& point, const Eigen::Vector3d& direction,
-                     double length, const Eigen::Vector3d& normal)
-    : Mechanism("LineGuide",
-                KinematicChain(
-                    tangent_frame(point,
-                                  tangent_or_default("normal", normal,
-                                                     require_unit("direction", direction)),
-                                  direction.normalized()),
-                    line_joints(), handle_behind_tip(checked_length(length))),
-                length, JointVector::Zero(4)),
+                     double length, const Eigen::Vector3d& normal, bool unilateral)
+    : ChainMechanism(
+          "LineGuide",
+          KinematicChain(
+              tangent_frame(point,
+                            tangent_or_default("normal", normal,
+                                               require_unit("direction", direction)),
+                            direction.normalized()),
+              line_joints(unilateral), handle_behind_tip(checked_length(length))),
+          length, JointVector::Zero(unilateral ? 5 : 4)),
       point_(point), direction_(direction.normalized()),
-      normal_(tangent_or_default("normal", normal, direction.normalized())), length_(length) {
+      normal_(tangent_or_default("normal", normal, direction.normalized())), length_(length),
+      unilateral_(unilateral) {
   require_finite("point", point);
 }
 
@@ -190,6 +251,6 @@ SerialChain::SerialChain(const std::vector<Joint>& joints, const Pose& handle, c
     : SerialChain(KinematicChain(base, joints, handle), length_scale) {}
 
 SerialChain::SerialChain(const KinematicChain& chain, double length_scale)
-    : Mechanism("SerialChain", chain, length_scale, home_within_limits(chain)) {}
+    : ChainMechanism("SerialChain", chain, length_scale, home_within_limits(chain)) {}
 
 }  // namespace virtmech

@@ -43,10 +43,8 @@ inline double cost_at(const Mechanism& m, const Pose& target, const JointVector&
 constexpr double kSecantMinRatio = 0.1;
 constexpr double kSecantMaxRatio = 0.8;
 
-inline void clamp_to_limits(const KinematicChain& chain, JointVector& x) noexcept {
-  for (int i = 0; i < chain.dof(); ++i) {
-    x[i] = std::min(std::max(x[i], chain.joint(i).lower), chain.joint(i).upper);
-  }
+inline void clamp_to_limits(const Mechanism& m, JointVector& x) noexcept {
+  for (int i = 0; i < m.dof(); ++i) x[i] = std::min(std::max(x[i], m.lower()[i]), m.upper()[i]);
 }
 
 }  // namespace
@@ -64,13 +62,12 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                           const TrackOptions& options, JointVector& theta, Pose& pose,
                           Jacobian& J) noexcept {
   const int n = mechanism.dof();
-  const KinematicChain& chain = mechanism.chain();
   TrackResult result;
   theta = theta0;
-  clamp_to_limits(chain, theta);
+  clamp_to_limits(mechanism, theta);
   JointVector step_cap(n);
   for (int i = 0; i < n; ++i) {
-    step_cap[i] = chain.joint(i).type == JointType::kRevolute
+    step_cap[i] = mechanism.joint_type(i) == JointType::kRevolute
                       ? options.max_step
                       : options.max_step_prismatic * mechanism.length_scale();
   }
@@ -113,17 +110,17 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
       // (a residual that cannot vanish, as a 5-joint mechanism held to a 6-D pose), and the
       // secant extrapolation removes the slow component
       trial = theta + delta;
-      clamp_to_limits(chain, trial);
+      clamp_to_limits(mechanism, trial);
       evaluate(mechanism, target, trial, weights, trial_ev);
       const double slope1 = trial_ev.g.dot(delta);
       if (slope0 > 0.0 && slope1 < 0.0) {
         trial = theta + (slope0 / (slope0 - slope1)) * delta;
-        clamp_to_limits(chain, trial);
+        clamp_to_limits(mechanism, trial);
         evaluate(mechanism, target, trial, weights, trial_ev);
       } else if (slope0 > 0.0 && slope1 >= kSecantMinRatio * slope0 &&
                  slope1 <= kSecantMaxRatio * slope0) {
         extrapolated = theta + (slope0 / (slope0 - slope1)) * delta;
-        clamp_to_limits(chain, extrapolated);
+        clamp_to_limits(mechanism, extrapolated);
         evaluate(mechanism, target, extrapolated, weights, extrapolated_ev);
         if (std::abs(extrapolated_ev.g.dot(delta)) < slope1) {  // kept only if it helped
           trial = extrapolated;
@@ -136,7 +133,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
       bool accepted = false;
       for (int k = 0; k < 10; ++k) {
         trial = theta + alpha * delta;
-        clamp_to_limits(chain, trial);
+        clamp_to_limits(mechanism, trial);
         if (cost_at(mechanism, target, trial, weights) <= ev.cost) {
           accepted = true;
           break;

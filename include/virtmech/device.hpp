@@ -22,25 +22,23 @@ struct DeviceLimits {
   double damping = 1.0;              //!< default translational Kv [N·s/m]
 };
 
-/// A haptic device: a kinematic chain in "serial" coordinates s = C q + c0 of the device's
-/// own joint coordinates q (C lets a parallelogram or a driver's sign / offset convention be
-/// expressed exactly), an actuation mask and limits.
+/// A haptic device (interface): joint count and kinds, which joints have motors, the
+/// limits the safety layer enforces, and the handle pose with its geometric Jacobian with
+/// respect to the device's own joint coordinates. A new device (a parallel one, a
+/// driver with its own conventions) is one subclass overriding forward_jacobian.
 class Device {
  public:
-  /// A device whose joint coordinates are the chain's own (C = I, c0 = 0).
-  Device(std::string name, const KinematicChain& chain, const DeviceLimits& limits);
-  /// A device with a linear joint map s = C q + c0 to the chain's coordinates.
-  Device(std::string name, const KinematicChain& chain, const DeviceLimits& limits,
-         const JointMatrix& coupling, const JointVector& coupling_offset);
   virtual ~Device() = default;
 
   const std::string& name() const noexcept { return name_; }
-  int dof() const noexcept { return chain_.dof(); }
-  const KinematicChain& chain() const noexcept { return chain_; }
+  int dof() const noexcept { return dof_; }
+  /// Kind of joint i (0 <= i < dof()): revolute [rad] or prismatic [m].
+  JointType joint_type(int i) const noexcept { return kinds_[static_cast<size_t>(i)]; }
   bool actuated(int i) const noexcept { return actuated_[static_cast<size_t>(i)]; }
   int num_actuated() const noexcept { return num_actuated_; }
   bool fully_actuated() const noexcept { return num_actuated_ == dof(); }
   const JointVector& torque_limit() const noexcept { return torque_limit_; }
+  /// Joint range in the device's coordinates [rad or m]; -inf / +inf where unlimited.
   const JointVector& lower() const noexcept { return lower_; }
   const JointVector& upper() const noexcept { return upper_; }
   const JointVector& home() const noexcept { return home_; }
@@ -48,27 +46,54 @@ class Device {
   double max_torque() const noexcept { return max_torque_; }
   double stiffness() const noexcept { return stiffness_; }
   double damping() const noexcept { return damping_; }
-  const JointMatrix& coupling() const noexcept { return coupling_; }
-  const JointVector& coupling_offset() const noexcept { return coupling_offset_; }
 
-  /// Handle pose at device joint values q.
-  void forward(const double* q, Pose& T) const noexcept;
-  /// Handle pose and geometric Jacobian with respect to the device's joints q.
-  void forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept;
+  /// Handle pose at device joint values q (dof() entries). The default evaluates
+  /// forward_jacobian; override it when the pose alone is cheaper.
+  virtual void forward(const double* q, Pose& T) const noexcept;
+  /// Handle pose and geometric Jacobian (6 x dof(), rows [v; w], world axes) with respect
+  /// to the device's joints q.
+  virtual void forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept = 0;
 
  protected:
+  /// Validates and stores the description; throws std::invalid_argument naming the bad
+  /// field. Empty `limits.lower` / `upper` mean unlimited joints.
+  Device(std::string name, const std::vector<JointType>& kinds, const DeviceLimits& limits);
   void set_home(const JointVector& home);
 
  private:
   std::string name_;
-  KinematicChain chain_;
-  JointMatrix coupling_;
-  JointVector coupling_offset_;
-  bool coupled_ = false;
+  int dof_ = 0;
+  std::array<JointType, kMaxDof> kinds_{};
   std::array<bool, kMaxDof> actuated_{};
   int num_actuated_ = 0;
   JointVector torque_limit_, lower_, upper_, home_;
   double max_force_ = kInf, max_torque_ = kInf, stiffness_ = 500.0, damping_ = 1.0;
+};
+
+/// A device that is a serial kinematic chain in "serial" coordinates s = C q + c0 of the
+/// device's own joint coordinates q (C lets a parallelogram or a driver's sign / offset
+/// convention be expressed exactly).
+class SerialDevice : public Device {
+ public:
+  /// A device whose joint coordinates are the chain's own (C = I, c0 = 0); joint limits
+  /// default to the chain's.
+  SerialDevice(std::string name, const KinematicChain& chain, const DeviceLimits& limits);
+  /// A device with a linear joint map s = C q + c0 to the chain's coordinates.
+  SerialDevice(std::string name, const KinematicChain& chain, const DeviceLimits& limits,
+               const JointMatrix& coupling, const JointVector& coupling_offset);
+
+  const KinematicChain& chain() const noexcept { return chain_; }
+  const JointMatrix& coupling() const noexcept { return coupling_; }
+  const JointVector& coupling_offset() const noexcept { return coupling_offset_; }
+
+  void forward(const double* q, Pose& T) const noexcept override;
+  void forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept override;
+
+ private:
+  KinematicChain chain_;
+  JointMatrix coupling_;
+  JointVector coupling_offset_;
+  bool coupled_ = false;
 };
 
 /// Parameters of the PHANTOM Omni / Geomagic Touch model (defaults: ../shared/REFERENCE.md).
@@ -92,7 +117,7 @@ struct PhantomOmniParams {
 /// meet at the gimbal centre, the handle origin. World frame: OpenHaptics axes (+x right,
 /// +y up, +z toward the user), in metres, origin where the gimbal centre is at t = 0.
 /// Gimbal zero: stylus horizontal, pointing away from the user (-z). See docs/devices.md.
-class PhantomOmni final : public Device {
+class PhantomOmni final : public SerialDevice {
  public:
   explicit PhantomOmni(const PhantomOmniParams& params = PhantomOmniParams());
   const PhantomOmniParams& params() const noexcept { return params_; }
@@ -104,7 +129,7 @@ class PhantomOmni final : public Device {
 /// The paper's Fig. 8 robot: three revolute joints about the base z axis, in the base's
 /// x-y plane; links `link1`, `link2`; the handle origin on the third (distal, un-powered)
 /// joint, the stylus in the plane at angle q0 + q1 + q2 from the base x axis.
-class Planar3R final : public Device {
+class Planar3R final : public SerialDevice {
  public:
   Planar3R(double link1, double link2, const Pose& base, double torque_limit, double max_force);
   double link1() const noexcept { return link1_; }

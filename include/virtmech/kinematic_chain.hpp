@@ -39,7 +39,8 @@ class KinematicChain {
   KinematicChain(const Pose& base, const std::vector<Joint>& joints, const Pose& handle);
 
   int dof() const noexcept { return dof_; }
-  const Joint& joint(int i) const { return joints_.at(static_cast<size_t>(i)); }
+  /// Joint i, 0 <= i < dof() (unchecked).
+  const Joint& joint(int i) const noexcept { return joints_[static_cast<size_t>(i)]; }
   std::vector<Joint> joints() const;
   const Pose& base() const noexcept { return base_; }
   const Pose& handle() const noexcept { return handle_; }

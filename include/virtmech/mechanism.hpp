@@ -1,10 +1,15 @@
 // Virtual mechanisms: the constraint the user feels, as a kinematic chain whose handle
 // frame the device's handle is held to (paper section III, Figs. 3 and 4).
 //
-// Handle-frame convention (DESIGN.md): origin at the grip point, local +z along the
+// Handle-frame convention (docs/theory.md): origin at the grip point, local +z along the
 // stylus, pointing from the hand toward the probe tip.
+//
+// `Mechanism` is the interface the controller uses: joint count, kinds and limits, home, a
+// length scale, and the handle pose with its geometric Jacobian at joint values x. A new
+// mechanism is one subclass; serial chains derive from `ChainMechanism`.
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -12,42 +17,66 @@
 
 namespace virtmech {
 
-/// A virtual mechanism: a kinematic chain with a name, a home configuration and a length
-/// scale [m] used to make rotational weights comparable with translational ones.
+/// A virtual mechanism (interface).
 class Mechanism {
  public:
   virtual ~Mechanism() = default;
 
-  int dof() const noexcept { return chain_.dof(); }
+  int dof() const noexcept { return dof_; }
   const std::string& type_name() const noexcept { return type_; }
-  const KinematicChain& chain() const noexcept { return chain_; }
-  /// Characteristic length [m]: the probe or arm length.
+  /// Characteristic length [m]: the probe or arm length; weights rotations against
+  /// translations (docs/theory.md, section 1).
   double length_scale() const noexcept { return length_scale_; }
-  /// Default warm start of the placement.
+  /// Default joint values, the first placement's warm start (within the limits).
   const JointVector& home() const noexcept { return home_; }
-  JointVector lower() const;
-  JointVector upper() const;
+  /// Joint limits [rad or m]; -inf / +inf where a joint has none.
+  const JointVector& lower() const noexcept { return lower_; }
+  const JointVector& upper() const noexcept { return upper_; }
+  /// Kind of joint i (0 <= i < dof()): revolute [rad] or prismatic [m].
+  JointType joint_type(int i) const noexcept { return kinds_[static_cast<size_t>(i)]; }
 
-  void forward(const double* theta, Pose& T) const noexcept { chain_.forward(theta, T); }
-  void forward_jacobian(const double* theta, Pose& T, Jacobian& J) const noexcept {
-    chain_.forward_jacobian(theta, T, J);
-  }
+  /// Handle pose at joint values x (dof() entries). The default evaluates
+  /// forward_jacobian; override it when the pose alone is cheaper.
+  virtual void forward(const double* x, Pose& T) const noexcept;
+  /// Handle pose and geometric Jacobian (6 x dof(), rows [v; w], world axes) at x.
+  virtual void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept = 0;
 
  protected:
-  Mechanism(std::string type, KinematicChain chain, double length_scale, JointVector home);
+  /// Validates and stores the joint description; throws std::invalid_argument naming the
+  /// bad parameter. `home` is moved into the limits.
+  Mechanism(std::string type, const std::vector<JointType>& kinds, const JointVector& lower,
+            const JointVector& upper, const JointVector& home, double length_scale);
 
  private:
   std::string type_;
-  KinematicChain chain_;
+  int dof_ = 0;
+  std::array<JointType, kMaxDof> kinds_{};
+  JointVector lower_, upper_, home_;
   double length_scale_ = 0.1;
-  JointVector home_;
+};
+
+/// A mechanism that is a serial chain of revolute and prismatic joints.
+class ChainMechanism : public Mechanism {
+ public:
+  const KinematicChain& chain() const noexcept { return chain_; }
+  void forward(const double* x, Pose& T) const noexcept override { chain_.forward(x, T); }
+  void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept override {
+    chain_.forward_jacobian(x, T, J);
+  }
+
+ protected:
+  ChainMechanism(std::string type, KinematicChain chain, double length_scale,
+                 const JointVector& home);
+
+ private:
+  KinematicChain chain_;
 };
 
 /// Paper Fig. 4 / eq. 2 in 3-D: a revolute joint at `pivot` about the unit `normal`; the
 /// handle lies at distance `length` from the pivot in direction R(theta) zero_direction;
 /// the stylus points from the handle to the pivot (the probe's tip rests at the pivot).
 /// Handle frame: z = -R(theta) d, y = normal, x = y x z.
-class PlanarArm final : public Mechanism {
+class PlanarArm final : public ChainMechanism {
  public:
   PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal, double length,
             const Eigen::Vector3d& zero_direction);
@@ -66,55 +95,67 @@ class PlanarArm final : public Mechanism {
 /// revolute joints whose axes meet at the tip (about t1, then the rotated t2, then the
 /// stylus). The handle is `length` back from the tip along the stylus; at theta = 0 the
 /// stylus points along -plane_normal (the hand is on the +normal side).
-class Probe final : public Mechanism {
+///
+/// `unilateral`: the tip may also leave the plane toward +plane_normal (a third prismatic
+/// joint along n, after t1 and t2, with lower limit 0), so the plane pushes but never pulls:
+/// PPPRRR, theta = [t1, t2, height, a, b, c].
+class Probe final : public ChainMechanism {
  public:
   Probe(const Eigen::Vector3d& plane_point, const Eigen::Vector3d& plane_normal, double length,
-        const Eigen::Vector3d& tangent);
+        const Eigen::Vector3d& tangent, bool unilateral = false);
   const Eigen::Vector3d& plane_point() const noexcept { return point_; }
   const Eigen::Vector3d& plane_normal() const noexcept { return normal_; }
   const Eigen::Vector3d& tangent() const noexcept { return tangent_; }
   double length() const noexcept { return length_; }
+  bool unilateral() const noexcept { return unilateral_; }
 
  private:
   Eigen::Vector3d point_, normal_, tangent_;
   double length_;
+  bool unilateral_;
 };
 
 /// A probe whose tip is pinned at `point` (RRR about the tip, as in Probe). At theta = 0 the
-/// stylus points along -normal.
-class PointPivot final : public Mechanism {
+/// stylus points along -normal. `unilateral`: the tip may lift off toward +normal (a
+/// prismatic joint along the normal with lower limit 0 before the RRR).
+class PointPivot final : public ChainMechanism {
  public:
   PointPivot(const Eigen::Vector3d& point, const Eigen::Vector3d& normal, double length,
-             const Eigen::Vector3d& tangent);
+             const Eigen::Vector3d& tangent, bool unilateral = false);
   const Eigen::Vector3d& point() const noexcept { return point_; }
   const Eigen::Vector3d& normal() const noexcept { return normal_; }
   const Eigen::Vector3d& tangent() const noexcept { return tangent_; }
   double length() const noexcept { return length_; }
+  bool unilateral() const noexcept { return unilateral_; }
 
  private:
   Eigen::Vector3d point_, normal_, tangent_;
   double length_;
+  bool unilateral_;
 };
 
 /// A probe whose tip slides on the line through `point` along the unit `direction`
 /// (P + RRR). At theta = 0 the stylus points along -normal, normal being orthogonal to the
-/// line.
-class LineGuide final : public Mechanism {
+/// line. `unilateral`: the tip may lift off the line toward +normal (a prismatic joint
+/// along the normal with lower limit 0 after the one along the line).
+class LineGuide final : public ChainMechanism {
  public:
   LineGuide(const Eigen::Vector3d& point, const Eigen::Vector3d& direction, double length,
-            const Eigen::Vector3d& normal);
+            const Eigen::Vector3d& normal, bool unilateral = false);
   const Eigen::Vector3d& point() const noexcept { return point_; }
   const Eigen::Vector3d& direction() const noexcept { return direction_; }
   const Eigen::Vector3d& normal() const noexcept { return normal_; }
   double length() const noexcept { return length_; }
+  bool unilateral() const noexcept { return unilateral_; }
 
  private:
   Eigen::Vector3d point_, direction_, normal_;
   double length_;
+  bool unilateral_;
 };
 
 /// Any serial chain of revolute / prismatic joints as a mechanism.
-class SerialChain final : public Mechanism {
+class SerialChain final : public ChainMechanism {
  public:
   SerialChain(const std::vector<Joint>& joints, const Pose& handle, const Pose& base,
               double length_scale);

@@ -183,6 +183,14 @@ nb::list status_names(std::uint32_t s) {
 }
 
 template <typename T>
+nb::list joint_type_names(const T& x) {
+  nb::list l;
+  for (int i = 0; i < x.dof(); ++i)
+    l.append(x.joint_type(i) == JointType::kRevolute ? "revolute" : "prismatic");
+  return l;
+}
+
+template <typename T>
 void bind_kinematics(nb::class_<T>& cls) {
   cls.def_prop_ro("dof", &T::dof, "Number of joints.")
       .def(
@@ -372,9 +380,13 @@ NB_MODULE(_core, m) {
   mech.def_prop_ro("type", &Mechanism::type_name)
       .def_prop_ro("length_scale", &Mechanism::length_scale,
                    "Characteristic length [m] weighting rotations against translations.")
-      .def_prop_ro("joints", [](const Mechanism& self) { return self.chain().joints(); });
+      .def_prop_ro("joint_types", [](const Mechanism& self) { return joint_type_names(self); },
+                   "'revolute' or 'prismatic' per joint.");
+  nb::class_<ChainMechanism, Mechanism>(m, "ChainMechanism",
+                                        "A mechanism that is a serial chain (base class).")
+      .def_prop_ro("joints", [](const ChainMechanism& self) { return self.chain().joints(); });
 
-  nb::class_<PlanarArm, Mechanism>(
+  nb::class_<PlanarArm, ChainMechanism>(
       m, "PlanarArm",
       "Paper Fig. 4 / eq. 2 in 3-D: a revolute joint at `pivot` about the unit `normal`, the "
       "handle at distance `length` in direction R(theta) zero_direction, the stylus pointing "
@@ -410,21 +422,27 @@ NB_MODULE(_core, m) {
         return d;
       }, "The mechanism's parameters as a JSON-ready dict.");
 
-  nb::class_<Probe, Mechanism>(
+  nb::class_<Probe, ChainMechanism>(
       m, "Probe",
       "Paper Fig. 3, PPRRR: the tip slides on the plane (plane_point, unit plane_normal); "
       "three revolute joints meet at the tip; the handle is `length` back along the stylus.")
       .def(
           "__init__",
-          [](Probe* self, nb::handle p, nb::handle n, nb::handle length, nb::handle tangent) {
+          [](Probe* self, nb::handle p, nb::handle n, nb::handle length, nb::handle tangent,
+             bool unilateral) {
             new (self) Probe(to_vec3("plane_point", p), to_vec3("plane_normal", n),
-                             to_double("length", length), opt_vec3("tangent", tangent));
+                             to_double("length", length), opt_vec3("tangent", tangent),
+                             unilateral);
           },
-          "plane_point"_a, "plane_normal"_a, "length"_a, "tangent"_a = nb::none())
+          "plane_point"_a, "plane_normal"_a, "length"_a, "tangent"_a = nb::none(),
+          "unilateral"_a = false,
+          "unilateral=True: the tip may leave the plane toward +plane_normal (a lift-off joint "
+          "with lower limit 0 after the two in-plane ones), so the plane pushes but never pulls.")
       .def_prop_ro("plane_point", &Probe::plane_point)
       .def_prop_ro("plane_normal", &Probe::plane_normal)
       .def_prop_ro("tangent", &Probe::tangent)
       .def_prop_ro("length", &Probe::length)
+      .def_prop_ro("unilateral", &Probe::unilateral)
       .def("to_dict", [](const Probe& a) {
         nb::dict d;
         d["type"] = "Probe";
@@ -432,22 +450,26 @@ NB_MODULE(_core, m) {
         d["plane_normal"] = to_list(a.plane_normal());
         d["length"] = a.length();
         d["tangent"] = to_list(a.tangent());
+        d["unilateral"] = a.unilateral();
         return d;
       });
 
-  nb::class_<PointPivot, Mechanism>(
+  nb::class_<PointPivot, ChainMechanism>(
       m, "PointPivot", "A probe whose tip is pinned at `point` (RRR at the tip).")
       .def(
           "__init__",
-          [](PointPivot* self, nb::handle p, nb::handle n, nb::handle length, nb::handle t) {
+          [](PointPivot* self, nb::handle p, nb::handle n, nb::handle length, nb::handle t,
+             bool unilateral) {
             new (self) PointPivot(to_vec3("point", p), to_vec3("normal", n),
-                                  to_double("length", length), opt_vec3("tangent", t));
+                                  to_double("length", length), opt_vec3("tangent", t), unilateral);
           },
           "point"_a, "normal"_a = nb::make_tuple(0.0, 0.0, 1.0), "length"_a = 0.1,
-          "tangent"_a = nb::none())
+          "tangent"_a = nb::none(), "unilateral"_a = false,
+          "unilateral=True: the tip may lift off toward +normal (a joint with lower limit 0).")
       .def_prop_ro("point", &PointPivot::point)
       .def_prop_ro("normal", &PointPivot::normal)
       .def_prop_ro("length", &PointPivot::length)
+      .def_prop_ro("unilateral", &PointPivot::unilateral)
       .def("to_dict", [](const PointPivot& a) {
         nb::dict d;
         d["type"] = "PointPivot";
@@ -455,22 +477,28 @@ NB_MODULE(_core, m) {
         d["normal"] = to_list(a.normal());
         d["length"] = a.length();
         d["tangent"] = to_list(a.tangent());
+        d["unilateral"] = a.unilateral();
         return d;
       });
 
-  nb::class_<LineGuide, Mechanism>(
+  nb::class_<LineGuide, ChainMechanism>(
       m, "LineGuide", "A probe whose tip slides on a line (P + RRR at the tip).")
       .def(
           "__init__",
-          [](LineGuide* self, nb::handle p, nb::handle dir, nb::handle length, nb::handle n) {
+          [](LineGuide* self, nb::handle p, nb::handle dir, nb::handle length, nb::handle n,
+             bool unilateral) {
             new (self) LineGuide(to_vec3("point", p), to_vec3("direction", dir),
-                                 to_double("length", length), opt_vec3("normal", n));
+                                 to_double("length", length), opt_vec3("normal", n), unilateral);
           },
-          "point"_a, "direction"_a, "length"_a = 0.1, "normal"_a = nb::none())
+          "point"_a, "direction"_a, "length"_a = 0.1, "normal"_a = nb::none(),
+          "unilateral"_a = false,
+          "unilateral=True: the tip may lift off the line toward +normal (a joint with lower "
+          "limit 0).")
       .def_prop_ro("point", &LineGuide::point)
       .def_prop_ro("direction", &LineGuide::direction)
       .def_prop_ro("normal", &LineGuide::normal)
       .def_prop_ro("length", &LineGuide::length)
+      .def_prop_ro("unilateral", &LineGuide::unilateral)
       .def("to_dict", [](const LineGuide& a) {
         nb::dict d;
         d["type"] = "LineGuide";
@@ -478,10 +506,11 @@ NB_MODULE(_core, m) {
         d["direction"] = to_list(a.direction());
         d["length"] = a.length();
         d["normal"] = to_list(a.normal());
+        d["unilateral"] = a.unilateral();
         return d;
       });
 
-  nb::class_<SerialChain, Mechanism>(
+  nb::class_<SerialChain, ChainMechanism>(
       m, "SerialChain", "Any serial chain of revolute / prismatic joints as a mechanism.")
       .def(
           "__init__",
@@ -514,11 +543,35 @@ NB_MODULE(_core, m) {
       });
 
   // --- devices
-  nb::class_<Device> dev(m, "Device", "A haptic device: kinematics, actuation and limits.");
+  nb::class_<Device> dev(m, "DeviceBase",
+                         "A haptic device (interface): kinematics, actuation and limits.");
   bind_kinematics(dev);
-  dev.def(
+  dev
+      .def_prop_ro("name", &Device::name)
+      .def_prop_ro("actuated",
+                   [](const Device& d) {
+                     Eigen::Matrix<bool, Eigen::Dynamic, 1> a(d.dof());
+                     for (int i = 0; i < d.dof(); ++i) a[i] = d.actuated(i);
+                     return a;
+                   },
+                   "Actuation mask (dof,) of bool.")
+      .def_prop_ro("torque_limit", [](const Device& d) { return Eigen::VectorXd(d.torque_limit()); },
+                   "Joint torque limits (dof,) [N·m or N]; 0 for passive joints.")
+      .def_prop_ro("max_force", &Device::max_force, "[N]")
+      .def_prop_ro("max_torque", &Device::max_torque, "[N·m]")
+      .def_prop_ro("stiffness", &Device::stiffness, "Default translational Kp [N/m].")
+      .def_prop_ro("damping", &Device::damping, "Default translational Kv [N·s/m].")
+      .def_prop_ro("joint_types", [](const Device& self) { return joint_type_names(self); },
+                   "'revolute' or 'prismatic' per joint.");
+
+
+  nb::class_<SerialDevice, Device>(
+      m, "Device",
+      "A serial-chain device (C++ SerialDevice) with any actuation mask; every device shares "
+      "DeviceBase.")
+      .def(
          "__init__",
-         [](Device* self, nb::handle joints, nb::handle actuated, nb::handle handle,
+         [](SerialDevice* self, nb::handle joints, nb::handle actuated, nb::handle handle,
             nb::handle base, nb::handle torque_limit, double max_force, double max_torque,
             double stiffness, double damping, const std::string& name) {
            std::vector<Joint> js = to_joints(joints);
@@ -535,7 +588,7 @@ NB_MODULE(_core, m) {
            L.damping = damping;
            const Pose H = handle.is_none() ? Pose::Identity() : to_pose("handle", handle);
            const Pose B = base.is_none() ? Pose::Identity() : to_pose("base", base);
-           new (self) Device(name, KinematicChain(B, js, H), L);
+           new (self) SerialDevice(name, KinematicChain(B, js, H), L);
          },
          "joints"_a, "actuated"_a, "handle"_a = nb::none(), "base"_a = nb::none(),
          "torque_limit"_a = nb::none(), "max_force"_a = kInf, "max_torque"_a = kInf,
@@ -543,24 +596,10 @@ NB_MODULE(_core, m) {
          "A serial-chain device with any actuation mask. joints: sequence of Joint; actuated: "
          "one bool per joint; torque_limit (dof,) [N·m or N]; max_force [N]; max_torque [N·m]; "
          "stiffness [N/m] and damping [N·s/m]: the default translational gains.")
-      .def_prop_ro("name", &Device::name)
-      .def_prop_ro("actuated",
-                   [](const Device& d) {
-                     Eigen::Matrix<bool, Eigen::Dynamic, 1> a(d.dof());
-                     for (int i = 0; i < d.dof(); ++i) a[i] = d.actuated(i);
-                     return a;
-                   },
-                   "Actuation mask (dof,) of bool.")
-      .def_prop_ro("torque_limit", [](const Device& d) { return Eigen::VectorXd(d.torque_limit()); },
-                   "Joint torque limits (dof,) [N·m or N]; 0 for passive joints.")
-      .def_prop_ro("max_force", &Device::max_force, "[N]")
-      .def_prop_ro("max_torque", &Device::max_torque, "[N·m]")
-      .def_prop_ro("stiffness", &Device::stiffness, "Default translational Kp [N/m].")
-      .def_prop_ro("damping", &Device::damping, "Default translational Kv [N·s/m].")
-      .def_prop_ro("joints", [](const Device& self) { return self.chain().joints(); },
+      .def_prop_ro("joints", [](const SerialDevice& self) { return self.chain().joints(); },
                    "The joints of the underlying chain (in chain coordinates).");
 
-  nb::class_<PhantomOmni, Device>(
+  nb::class_<PhantomOmni, SerialDevice>(
       m, "PhantomOmni",
       "PHANTOM Omni / Geomagic Touch: waist, shoulder, absolute elbow (HD_CURRENT_JOINT_ANGLES) "
       "actuated; gimbal yaw, pitch, roll passive, meeting at the handle origin. OpenHaptics "
@@ -608,7 +647,7 @@ NB_MODULE(_core, m) {
         return out;
       });
 
-  nb::class_<Planar3R, Device>(
+  nb::class_<Planar3R, SerialDevice>(
       m, "Planar3R",
       "The paper's Fig. 8 robot: three revolute joints about the base z axis; the distal "
       "joint un-powered; the handle origin on it, the stylus along angle q0 + q1 + q2.")

@@ -13,8 +13,10 @@ from . import status
 from ._core import (
     MAX_DOF,
     Controller,
+    ChainMechanism,
     CycleOutput,
     Device,
+    DeviceBase,
     Joint,
     LineGuide,
     Mechanism,
@@ -37,8 +39,10 @@ from ._core import (
 __all__ = [
     "MAX_DOF",
     "Controller",
+    "ChainMechanism",
     "CycleOutput",
     "Device",
+    "DeviceBase",
     "Joint",
     "LineGuide",
     "Mechanism",

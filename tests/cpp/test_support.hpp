@@ -37,7 +37,7 @@ Jacobian numeric_jacobian(const Fk& fk, const JointVector& q, double h = 1e-6) {
   return J;
 }
 
-inline std::shared_ptr<Device> six_dof_arm() {
+inline std::shared_ptr<SerialDevice> six_dof_arm() {
   // a fully actuated 6R arm (anthropomorphic, spherical wrist)
   std::vector<Joint> j(6);
   const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY(),
@@ -62,7 +62,7 @@ inline std::shared_ptr<Device> six_dof_arm() {
   L.max_torque = 4.0;
   L.stiffness = 800.0;
   L.damping = 2.0;
-  return std::make_shared<Device>("Arm6R", KinematicChain(Pose::Identity(), j, handle), L);
+  return std::make_shared<SerialDevice>("Arm6R", KinematicChain(Pose::Identity(), j, handle), L);
 }
 
 }  // namespace vmtest
