@@ -31,6 +31,7 @@ extern "C" {
 #define VM_STATUS_FAULT_NONFINITE_INPUT (1u << 8)
 #define VM_STATUS_FAULT_NONFINITE_OUTPUT (1u << 9)
 #define VM_STATUS_FAULT_BAD_SIZE (1u << 10)
+#define VM_STATUS_FAULT_OUT_OF_RANGE (1u << 11) /* q beyond the joint range + margin */
 #define VM_STATUS_FAULT_MASK 0xFF00u
 
 /* Largest number of joints of a device or mechanism. */
@@ -70,19 +71,27 @@ typedef struct vm_chain {
   double handle[16];
 } vm_chain;
 
-/* Device description. For VM_DEVICE_PLANAR3R: link1, link2, torque_limit[0], max_force;
- * for VM_DEVICE_SERIAL: chain, actuated, torque_limit, max_force, max_torque, stiffness,
- * damping. Fill with vm_device_desc_init first: zero fields mean "default". */
+/* Device description; vm_device_desc_init fills every field with the type's defaults.
+ * VM_DEVICE_PHANTOM_OMNI: link1, link2 (l1, l2), torque_limit[0..2] (motors), max_force,
+ *   gimbal_offset, gimbal_sign (driver gimbal angles g map to virtmech's as
+ *   sign * (g - offset); docs/devices.md), stiffness, damping.
+ * VM_DEVICE_PLANAR3R: link1, link2, base, torque_limit[0], max_force.
+ * VM_DEVICE_SERIAL: chain, actuated, torque_limit (<= 0: none), max_force, max_torque
+ *   (<= 0: none), stiffness, damping, name. */
 typedef struct vm_device_desc {
   vm_device_type type;
-  double link1, link2;               /* [m] (Planar3R) */
+  double link1, link2;               /* [m] (Omni, Planar3R) */
+  double base[16];                   /* row-major 4x4 (Planar3R) */
   vm_chain chain;                    /* (serial) */
   int actuated[VM_MAX_DOF];          /* 1 = motor-driven (serial) */
   double torque_limit[VM_MAX_DOF];   /* [N·m or N] */
   double max_force;                  /* [N] */
-  double max_torque;                 /* [N·m] */
-  double stiffness;                  /* default translational Kp [N/m] */
-  double damping;                    /* default translational Kv [N·s/m] */
+  double max_torque;                 /* [N·m] (serial) */
+  double stiffness;                  /* default translational Kp [N/m] (Omni, serial) */
+  double damping;                    /* default translational Kv [N·s/m] (Omni, serial) */
+  double gimbal_offset[3];           /* [rad] (Omni) */
+  double gimbal_sign[3];             /* +1 or -1 (Omni) */
+  char name[64];                     /* (serial) NUL-terminated */
 } vm_device_desc;
 
 /* Mechanism description (see vm_mechanism_type for which fields each uses). */
@@ -93,6 +102,8 @@ typedef struct vm_mechanism_desc {
   double direction[3]; /* zero direction (PlanarArm), line direction (LineGuide),
                           tangent (Probe, PointPivot; zero = automatic) */
   double length;       /* [m] */
+  int unilateral;      /* 1: the tip may lift off toward +normal (Probe, PointPivot,
+                          LineGuide): the surface pushes but never pulls */
   vm_chain chain;      /* (serial) */
   double length_scale; /* [m] (serial) */
 } vm_mechanism_desc;
@@ -111,6 +122,9 @@ typedef struct vm_settings {
   double max_torque;     /* [N·m]; 0 = device's */
   int max_iterations;
   int max_iterations_initial;
+  double secondary_weight; /* tie-break weight of the full pose in both placements */
+  double range_margin_rad; /* q may leave the joint range by this much [rad] ... */
+  double range_margin_m;   /* ... or [m] before the fault VM_STATUS_FAULT_OUT_OF_RANGE */
 } vm_settings;
 
 /* Diagnostics of the last cycle. */
@@ -123,6 +137,7 @@ typedef struct vm_diagnostics {
   double handle_pose[16];    /* row-major 4x4 */
   double mechanism_pose[16]; /* row-major 4x4 */
   int iterations, iterations_star;
+  uint32_t active, active_star; /* joints held at a limit that acts (bit i: joint i) */
   double ramp, limit_scale;
   uint32_t status;
   double computation_time_us;
@@ -147,10 +162,11 @@ int vm_controller_create(const vm_device_desc* device, const vm_mechanism_desc* 
 void vm_controller_destroy(vm_controller* controller);
 /* Number of device joints: the length of q, dq and tau. Does not allocate. */
 int vm_controller_dof(const vm_controller* controller);
-/* One servo cycle: q, dq in (device joints), tau out; returns status bits. t_s is the
- * cycle's time stamp [s] for the watchdog, or NAN. Never allocates, never fails: a fault
- * status comes with tau = 0. */
-uint32_t vm_controller_step(vm_controller* controller, const double* q, const double* dq,
+/* One servo cycle: q, dq in (device joints, n each), tau out (n entries); returns status
+ * bits. n must be vm_controller_dof(controller). t_s is the cycle's time stamp [s] for the
+ * watchdog, or NAN. Never allocates, never fails: a fault status comes with tau = 0 (also
+ * for a NULL controller, NULL q or dq, or a wrong n; tau gets n zeros). */
+uint32_t vm_controller_step(vm_controller* controller, const double* q, const double* dq, int n,
                             double t_s, double* tau);
 /* Restarts placements and the ramp-in. Does not allocate. */
 void vm_controller_reset(vm_controller* controller);

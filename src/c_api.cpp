@@ -7,9 +7,24 @@
 #include <new>
 #include <string>
 
+#include "virtmech/validate.hpp"
 #include "virtmech/virtmech.hpp"
 
 using namespace virtmech;
+
+// the C status bits are the C++ ones
+static_assert(VM_STATUS_OK == status::kOk);
+static_assert(VM_STATUS_RAMPING == status::kRamping);
+static_assert(VM_STATUS_FORCE_CLAMPED == status::kForceClamped);
+static_assert(VM_STATUS_TORQUE_CLAMPED == status::kTorqueClamped);
+static_assert(VM_STATUS_NOT_CONVERGED == status::kNotConverged);
+static_assert(VM_STATUS_WATCHDOG == status::kWatchdog);
+static_assert(VM_STATUS_FAULT_NONFINITE_INPUT == status::kFaultNonFiniteInput);
+static_assert(VM_STATUS_FAULT_NONFINITE_OUTPUT == status::kFaultNonFiniteOutput);
+static_assert(VM_STATUS_FAULT_BAD_SIZE == status::kFaultBadSize);
+static_assert(VM_STATUS_FAULT_OUT_OF_RANGE == status::kFaultOutOfRange);
+static_assert(VM_STATUS_FAULT_MASK == status::kFaultMask);
+static_assert(VM_MAX_DOF == kMaxDof);
 
 struct vm_controller {
   Controller controller;
@@ -55,6 +70,12 @@ void init_chain(vm_chain& c) {
 
 Eigen::Vector3d v3(const double* v) { return Eigen::Vector3d(v[0], v[1], v[2]); }
 
+Pose checked_pose(const std::string& name, const double* rm) {
+  const Pose T = pose_from(rm);
+  require_pose(name, T);
+  return T;
+}
+
 KinematicChain chain_from(const vm_chain& c) {
   if (c.dof < 1 || c.dof > VM_MAX_DOF) {
     throw std::invalid_argument("chain.dof: expected 1 to " + std::to_string(VM_MAX_DOF) +
@@ -80,11 +101,23 @@ KinematicChain chain_from(const vm_chain& c) {
 
 std::shared_ptr<const Device> device_from(const vm_device_desc& d) {
   switch (d.type) {
-    case VM_DEVICE_PHANTOM_OMNI:
-      return std::make_shared<PhantomOmni>();
+    case VM_DEVICE_PHANTOM_OMNI: {
+      PhantomOmniParams p;
+      p.l1 = d.link1;
+      p.l2 = d.link2;
+      p.max_force = d.max_force;
+      for (int i = 0; i < 3; ++i) {
+        p.motor_torque_limit[static_cast<size_t>(i)] = d.torque_limit[i];
+        p.gimbal_offset[static_cast<size_t>(i)] = d.gimbal_offset[i];
+        p.gimbal_sign[static_cast<size_t>(i)] = d.gimbal_sign[i];
+      }
+      p.stiffness = d.stiffness;
+      p.damping = d.damping;
+      return std::make_shared<PhantomOmni>(p);
+    }
     case VM_DEVICE_PLANAR3R:
-      return std::make_shared<Planar3R>(d.link1, d.link2, Pose::Identity(), d.torque_limit[0],
-                                        d.max_force);
+      return std::make_shared<Planar3R>(d.link1, d.link2, checked_pose("device.base", d.base),
+                                        d.torque_limit[0], d.max_force);
     case VM_DEVICE_SERIAL: {
       const KinematicChain chain = chain_from(d.chain);
       DeviceLimits L;
@@ -94,13 +127,27 @@ std::shared_ptr<const Device> device_from(const vm_device_desc& d) {
       }
       L.max_force = d.max_force > 0.0 ? d.max_force : kInf;
       L.max_torque = d.max_torque > 0.0 ? d.max_torque : kInf;
-      if (d.stiffness > 0.0) L.stiffness = d.stiffness;
-      if (d.damping > 0.0) L.damping = d.damping;
-      return std::make_shared<SerialDevice>("SerialDevice", chain, L);
+      L.stiffness = d.stiffness;
+      L.damping = d.damping;
+      const size_t len = strnlen(d.name, sizeof d.name);
+      if (len == sizeof d.name) {
+        throw std::invalid_argument("device.name: expected a NUL-terminated string of at most " +
+                                    std::to_string(sizeof d.name - 1) + " characters");
+      }
+      return std::make_shared<SerialDevice>(len ? std::string(d.name, len) : "SerialDevice",
+                                            chain, L);
     }
   }
   throw std::invalid_argument("device.type: expected VM_DEVICE_PHANTOM_OMNI, VM_DEVICE_PLANAR3R "
                               "or VM_DEVICE_SERIAL, got " + std::to_string(static_cast<int>(d.type)));
+}
+
+bool unilateral_from(const vm_mechanism_desc& m) {
+  if (m.unilateral != 0 && m.unilateral != 1) {
+    throw std::invalid_argument("mechanism.unilateral: expected 0 or 1, got " +
+                                std::to_string(m.unilateral));
+  }
+  return m.unilateral == 1;
 }
 
 std::shared_ptr<const Mechanism> mechanism_from(const vm_mechanism_desc& m) {
@@ -108,11 +155,14 @@ std::shared_ptr<const Mechanism> mechanism_from(const vm_mechanism_desc& m) {
     case VM_MECHANISM_PLANAR_ARM:
       return std::make_shared<PlanarArm>(v3(m.point), v3(m.normal), m.length, v3(m.direction));
     case VM_MECHANISM_PROBE:
-      return std::make_shared<Probe>(v3(m.point), v3(m.normal), m.length, v3(m.direction));
+      return std::make_shared<Probe>(v3(m.point), v3(m.normal), m.length, v3(m.direction),
+                                     unilateral_from(m));
     case VM_MECHANISM_POINT_PIVOT:
-      return std::make_shared<PointPivot>(v3(m.point), v3(m.normal), m.length, v3(m.direction));
+      return std::make_shared<PointPivot>(v3(m.point), v3(m.normal), m.length, v3(m.direction),
+                                          unilateral_from(m));
     case VM_MECHANISM_LINE_GUIDE:
-      return std::make_shared<LineGuide>(v3(m.point), v3(m.direction), m.length, v3(m.normal));
+      return std::make_shared<LineGuide>(v3(m.point), v3(m.direction), m.length, v3(m.normal),
+                                         unilateral_from(m));
     case VM_MECHANISM_SERIAL:
       return std::make_shared<SerialChain>(chain_from(m.chain), m.length_scale);
   }
@@ -150,6 +200,9 @@ ControllerSettings settings_from(const vm_settings& s) {
   c.max_torque = s.max_torque;
   c.max_iterations = s.max_iterations;
   c.max_iterations_initial = s.max_iterations_initial;
+  c.secondary_weight = s.secondary_weight;
+  c.range_margin_rad = s.range_margin_rad;
+  c.range_margin_m = s.range_margin_m;
   return c;
 }
 
@@ -170,13 +223,29 @@ extern "C" {
 void vm_device_desc_init(vm_device_desc* desc, vm_device_type type) {
   std::memset(desc, 0, sizeof(*desc));
   desc->type = type;
-  if (type == VM_DEVICE_PLANAR3R) {
-    desc->link1 = 0.2;
-    desc->link2 = 0.2;
-    desc->torque_limit[0] = 1.0;
-    desc->max_force = 5.0;
-  }
+  identity16(desc->base);
   init_chain(desc->chain);
+  const DeviceLimits serial;
+  desc->stiffness = serial.stiffness;
+  desc->damping = serial.damping;
+  if (type == VM_DEVICE_PHANTOM_OMNI) {
+    const PhantomOmniParams p;
+    desc->link1 = p.l1;
+    desc->link2 = p.l2;
+    desc->max_force = p.max_force;
+    for (int i = 0; i < 3; ++i) {
+      desc->torque_limit[i] = p.motor_torque_limit[static_cast<size_t>(i)];
+      desc->gimbal_offset[i] = p.gimbal_offset[static_cast<size_t>(i)];
+      desc->gimbal_sign[i] = p.gimbal_sign[static_cast<size_t>(i)];
+    }
+    desc->stiffness = p.stiffness;
+    desc->damping = p.damping;
+  } else if (type == VM_DEVICE_PLANAR3R) {
+    desc->link1 = Planar3RDefaults::kLink;
+    desc->link2 = Planar3RDefaults::kLink;
+    desc->torque_limit[0] = Planar3RDefaults::kTorqueLimit;
+    desc->max_force = Planar3RDefaults::kMaxForce;
+  }
 }
 
 void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type) {
@@ -202,6 +271,9 @@ void vm_settings_init(vm_settings* s) {
   s->max_torque = d.max_torque;
   s->max_iterations = d.max_iterations;
   s->max_iterations_initial = d.max_iterations_initial;
+  s->secondary_weight = d.secondary_weight;
+  s->range_margin_rad = d.range_margin_rad;
+  s->range_margin_m = d.range_margin_m;
 }
 
 int vm_controller_create(const vm_device_desc* device, const vm_mechanism_desc* mechanism,
@@ -236,13 +308,14 @@ void vm_controller_destroy(vm_controller* controller) { delete controller; }
 
 int vm_controller_dof(const vm_controller* c) { return c ? c->controller.device().dof() : 0; }
 
-uint32_t vm_controller_step(vm_controller* c, const double* q, const double* dq, double t_s,
-                            double* tau) {
-  if (!c) return VM_STATUS_FAULT_BAD_SIZE;
-  const int n = c->controller.device().dof();
-  if (!q || !dq) {
+uint32_t vm_controller_step(vm_controller* c, const double* q, const double* dq, int n,
+                            double t_s, double* tau) {
+  if (!c || !q || !dq || n != c->controller.device().dof()) {
     if (tau) for (int i = 0; i < n; ++i) tau[i] = 0.0;
-    return VM_STATUS_FAULT_BAD_SIZE;
+    if (!c) return VM_STATUS_FAULT_BAD_SIZE;
+    // through the controller, so that it ramps in again once the calls are right
+    const Eigen::Map<const Eigen::VectorXd> none(nullptr, 0);
+    return c->controller.step(none, none, c->out, t_s);
   }
   const uint32_t s = c->controller.step(q, dq, c->out, t_s);
   if (tau) for (int i = 0; i < n; ++i) tau[i] = c->out.torque[i];
@@ -273,6 +346,8 @@ void vm_controller_diagnostics(const vm_controller* c, vm_diagnostics* d) {
   pose_to(o.mechanism_pose, d->mechanism_pose);
   d->iterations = o.iterations;
   d->iterations_star = o.iterations_star;
+  d->active = o.active;
+  d->active_star = o.active_star;
   d->ramp = o.ramp;
   d->limit_scale = o.limit_scale;
   d->status = o.status;

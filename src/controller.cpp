@@ -1,6 +1,5 @@
 #include "virtmech/controller.hpp"
 
-#include <Eigen/Cholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -30,67 +29,6 @@ Vector6 checked_weights(const std::string& name, const Vector6& w) {
 // largest change per cycle, as a fraction of the placement's step cap, that the warm start
 // extrapolates
 constexpr double kWarmStartFraction = 0.1;
-
-// The range-space filter P(W) = W J (J^T W J)^+ J^T (eq. 5) applied to wrenches, W diagonal.
-// With S = W^1/2 J, S (S^T S)^+ = (S S^T)^+ S, so equally P(W) x = W^1/2 G^+ W^1/2 J J^T x
-// with G = S S^T restricted to the k task axes of non-zero weight. J^T W J (m x m) and G
-// (k x k) have the same non-zero eigenvalues, hence the same pseudo-inverse cut: the smaller
-// one is factored (for the Omni, k = 3 forces against a 5-joint probe).
-class RangeFilter {
- public:
-  RangeFilter(const Jacobian& J, const Vector6& w) noexcept : J_(J) {
-    const int m = static_cast<int>(J.cols());
-    for (int i = 0; i < 6; ++i) {
-      if (w[i] > 0.0) {
-        axes_[k_] = i;
-        sqrt_w_[k_] = std::sqrt(w[i]);
-        ++k_;
-      }
-    }
-    dual_ = k_ < m;
-    if (dual_) {
-      S_.resize(k_, m);
-      for (int r = 0; r < k_; ++r) S_.row(r) = sqrt_w_[r] * J.row(axes_[r]);
-      JointMatrix G(k_, k_);
-      G.noalias() = S_ * S_.transpose();
-      symmetric_pinv(G, Gp_);
-    } else {
-      WJ_.noalias() = w.asDiagonal() * J;
-      JointMatrix H(m, m);
-      H.noalias() = J.transpose() * WJ_;
-      symmetric_pinv(H, Gp_);
-    }
-  }
-
-  /// P(W) x.
-  Vector6 apply(const Vector6& x) const noexcept {
-    JointVector u(J_.cols());
-    u.noalias() = J_.transpose() * x;
-    Vector6 out;
-    if (dual_) {
-      JointVector v(k_), y(k_);
-      v.noalias() = S_ * u;
-      y.noalias() = Gp_ * v;
-      out.setZero();
-      for (int r = 0; r < k_; ++r) out[axes_[r]] = sqrt_w_[r] * y[r];
-    } else {
-      JointVector y(J_.cols());
-      y.noalias() = Gp_ * u;
-      out.noalias() = WJ_ * y;
-    }
-    return out;
-  }
-
- private:
-  const Jacobian& J_;
-  std::array<int, 6> axes_{};
-  std::array<double, 6> sqrt_w_{};
-  int k_ = 0;
-  bool dual_ = false;
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, 6, kMaxDof> S_;
-  Jacobian WJ_;
-  JointMatrix Gp_;
-};
 
 // The warm start of a placement: theta moved on by its last change, when that change is
 // the smooth motion of one cycle (within a tenth of the solver's step cap per joint); after
@@ -144,6 +82,7 @@ ControllerModel make_controller_model(const Device& device, const Mechanism& mec
   if (m.w_e.isZero(0.0)) throw std::invalid_argument("w_e: expected at least one weight > 0, got all zero");
   if (m.w_a.isZero(0.0)) throw std::invalid_argument("w_a: expected at least one weight > 0, got all zero");
   require_non_negative("secondary_weight", s.secondary_weight);
+  m.w_a_support = static_cast<int>((m.w_a.array() > 0.0).count());
   m.w_e_effective = m.w_e + s.secondary_weight * unit;
   m.w_e_star_effective = m.w_e_star + s.secondary_weight * unit;
 
@@ -196,214 +135,210 @@ ControllerModel make_controller_model(const Device& device, const Mechanism& mec
   }
   m.track.max_iterations = s.max_iterations;
   m.track_initial.max_iterations = s.max_iterations_initial;
+
+  require_non_negative("range_margin_rad", s.range_margin_rad);
+  require_non_negative("range_margin_m", s.range_margin_m);
+  const int n = device.dof();
+  m.q_min.resize(n);
+  m.q_max.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const double margin =
+        device.joint_type(i) == JointType::kRevolute ? s.range_margin_rad : s.range_margin_m;
+    m.q_min[i] = device.lower()[i] - margin;
+    m.q_max[i] = device.upper()[i] + margin;
+  }
   return m;
 }
 
-Controller::Controller(std::shared_ptr<const Device> device,
-                       std::shared_ptr<const Mechanism> mechanism,
-                       const ControllerSettings& settings)
-    : device_(std::move(device)), mechanism_(std::move(mechanism)) {
-  if (!device_) throw std::invalid_argument("device: expected a device, got null");
-  if (!mechanism_) throw std::invalid_argument("mechanism: expected a mechanism, got null");
-  model_ = make_controller_model(*device_, *mechanism_, settings);
-  reset();
-  last_.torque = JointVector::Zero(device_->dof());
-  last_.theta = theta_;
-  last_.theta_star = theta_star_;
-}
+// --- the cycle's stages, in the order step() runs them ---------------------------------
 
-void Controller::reset() noexcept {
-  theta_ = mechanism_->home();
-  theta_star_ = mechanism_->home();
-  first_ = true;
-  ramp_count_ = 0;
-  last_t_ = std::numeric_limits<double>::quiet_NaN();
-}
+namespace {
 
-void Controller::fault(std::uint32_t bits, CycleOutput& out) noexcept {
+// Zero torque and a fault bit; the next good cycle starts placements afresh and ramps in.
+void fault(const Device& dev, ControllerData& d, std::uint32_t bits, CycleOutput& out) noexcept {
   out.status |= bits;
-  out.torque.setZero(device_->dof());
+  out.torque.setZero(dev.dof());
   out.wrench.setZero();
   out.ramp = 0.0;
   out.limit_scale = 1.0;
-  ramp_count_ = 0;  // ramp in again once the fault clears
-  first_ = true;
+  d.ramp_count = 0;
+  d.first = true;
 }
 
-void Controller::placement_rate(const Jacobian& J_V, const Vector6& W, const Vector6& v_R,
-                                Vector6& e_dot) const noexcept {
-  if (model_.error_velocity == ErrorVelocity::kHandle) {
+// q and dq finite, q inside the device's range widened by the margin (docs/theory.md, 8).
+std::uint32_t check_input(const ControllerModel& M, const Device& dev, const double* q,
+                          const double* dq) noexcept {
+  const int n = dev.dof();
+  const Eigen::Map<const JointVector> qv(q, n), dqv(dq, n);
+  if (!qv.allFinite() || !dqv.allFinite()) return status::kFaultNonFiniteInput;
+  for (int i = 0; i < n; ++i) {
+    if (q[i] < M.q_min[i] || q[i] > M.q_max[i]) return status::kFaultOutOfRange;
+  }
+  return status::kOk;
+}
+
+// A gap longer than watchdog_s, or time running backwards, restarts the ramp-in.
+void watchdog(const ControllerModel& M, ControllerData& d, double t_s, CycleOutput& out) noexcept {
+  if (!(M.watchdog_s > 0.0) || !std::isfinite(t_s)) return;
+  if (std::isfinite(d.last_t) && (t_s - d.last_t > M.watchdog_s || t_s < d.last_t)) {
+    out.status |= status::kWatchdog;
+    d.ramp_count = 0;
+  }
+  d.last_t = t_s;
+}
+
+// X_R = Phi_R(q), J_R(q) (eqs. 13, 15) and the handle twist.
+void device_kinematics(const Device& dev, ControllerData& d, const double* q,
+                       const double* dq) noexcept {
+  dev.forward_jacobian(q, d.handle_pose, d.J_R);
+  d.v_R.noalias() = d.J_R * Eigen::Map<const JointVector>(dq, dev.dof());
+}
+
+// J without the columns of the joints in `active`.
+void free_columns(const Jacobian& J, std::uint32_t active, Jacobian& J_free) noexcept {
+  const int m = static_cast<int>(J.cols());
+  int k = 0;
+  for (int i = 0; i < m; ++i) k += (active >> i) & 1u ? 0 : 1;
+  J_free.resize(6, k);
+  k = 0;
+  for (int i = 0; i < m; ++i) {
+    if (!((active >> i) & 1u)) J_free.col(k++) = J.col(i);
+  }
+}
+
+// Places the mechanism for the handle pose with weights W (eqs. 18-20), warm-started, and
+// records the active set: joints held at a limit are locked (their columns leave J_free).
+void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
+           const Vector6& W, bool first, Placement& p) noexcept {
+  const TrackOptions& opts = first ? M.track_initial : M.track;
+  // warm start: the last placement moved on by its last change (placements follow the
+  // handle smoothly, so this starts second-order close), when that change is between two
+  // converged placements; the first cycle after a start, reset or fault starts where it is
+  const JointVector theta0 =
+      !first && p.extrapolate ? warm_start(mech, opts, p.theta, p.theta_prev) : p.theta;
+  JointVector theta;
+  p.result = detail::track(mech, target, theta0, W, opts, theta, p.pose, p.J);
+  p.extrapolate = !first && p.result.converged && p.converged;
+  p.converged = p.result.converged;
+  p.theta_prev = first ? theta : p.theta;
+  p.theta = theta;
+  p.active = p.result.active;
+  free_columns(p.J, p.active, p.J_free);
+}
+
+// e_dot: the part of the handle's twist the placement does not follow, through the locked
+// Jacobian (docs/theory.md, 3); or the paper's eq. 10.
+void error_rate(const ControllerModel& M, const Placement& p, const Vector6& W,
+                const Vector6& v_R, WeightedProjector& proj, Vector6& e_dot) noexcept {
+  if (M.error_velocity == ErrorVelocity::kHandle) {
     e_dot = -v_R;  // eq. 10
     return;
   }
-  // theta_dot = (J^T W J)^+ J^T W v_R: the rate of the weighted placement, first order
-  const int m = static_cast<int>(J_V.cols());
-  const Jacobian WJ = W.asDiagonal() * J_V;
-  JointMatrix H(m, m);
-  H.noalias() = J_V.transpose() * WJ;
-  JointMatrix Hp;
-  symmetric_pinv(H, Hp);
-  JointVector rhs(m);
-  rhs.noalias() = WJ.transpose() * v_R;
-  JointVector theta_dot(m);
-  theta_dot.noalias() = Hp * rhs;
-  e_dot.noalias() = J_V * theta_dot;
+  proj.compute(p.J_free, W);
+  JointVector theta_dot;
+  proj.fit(v_R, theta_dot);  // (J^T W J)^+ J^T W v_R
+  e_dot.noalias() = p.J_free * theta_dot;
   e_dot -= v_R;
 }
 
-std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
-                               const Eigen::Ref<const Eigen::VectorXd>& dq, CycleOutput& out,
-                               double t_s) noexcept {
-  if (q.size() != device_->dof() || dq.size() != device_->dof()) {
-    out.status = status::kOk;
-    fault(status::kFaultBadSize, out);
-    last_ = out;
-    return out.status;
+// A limit pushes and never pulls: joints of `active` whose motion the wrench f drives back
+// past their bound (the sticking pull of damping as the handle leaves a surface).
+std::uint32_t pulling(const Mechanism& mech, const Placement& p, const Vector6& f) noexcept {
+  std::uint32_t pull = 0;
+  for (int i = 0; i < mech.dof(); ++i) {
+    if (!((p.active >> i) & 1u)) continue;
+    const double power = p.J.col(i).dot(f);  // > 0: f drives theta_i up
+    const bool at_lower = p.theta[i] <= mech.lower()[i];
+    if (at_lower ? power < 0.0 : power > 0.0) pull |= 1u << i;
   }
-  return step(q.data(), dq.data(), out, t_s);
+  return pull;
 }
 
-std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& out,
-                               double t_s) noexcept {
-  const auto t_start = std::chrono::steady_clock::now();
-  const Device& dev = *device_;
-  const Mechanism& mech = *mechanism_;
-  const ControllerModel& M = model_;
+void release(std::uint32_t joints, Placement& p) noexcept {
+  p.active &= ~joints;
+  free_columns(p.J, p.active, p.J_free);
+}
+
+// Null-space term N(W_A)(Kp e + Kv e_dot) (eqs. 7, 9, 11) at the nearest placement, locked
+// joints kept in the constraint.
+void null_space_term(const ControllerModel& M, const Mechanism& mech, ControllerData& d,
+                     CycleOutput& out) noexcept {
+  Placement& p = d.nearest;
+  out.error = pose_error(p.pose, d.handle_pose);  // e = X_V - X_R (eq. 22)
+  for (int pass = 0; pass < 2; ++pass) {
+    error_rate(M, p, M.w_e_effective, d.v_R, d.projector, out.error_dot);
+    const Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);
+    d.projector.compute(p.J_free, M.w_a);
+    out.wrench_null = d.projector.null(F);
+    const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_null) : 0u;
+    if (!pull) break;
+    release(pull, p);
+  }
+}
+
+// Range-space term P(W_A)(Kp e* + Kv e*_dot) of eq. 26 with the un-powered placement's
+// error (eq. 25). P is taken at the nearest placement, as in the paper, with every column:
+// F* points to X_V*, a pose within the limits, so no direction toward it is removed. Where
+// the nearest placement is singular, i.e. has lost a direction of motion the mechanism has
+// at the un-powered placement (a probe's stylus exactly along the normal, the handle at the
+// end of its reach), P is taken at the un-powered placement (docs/theory.md, 6).
+void range_space_term(const ControllerModel& M, const Mechanism& mech, ControllerData& d,
+                      CycleOutput& out) noexcept {
+  Placement& p = d.unpowered;
+  out.error_star = pose_error(p.pose, d.handle_pose);
+  for (int pass = 0; pass < 2; ++pass) {
+    error_rate(M, p, M.w_e_star_effective, d.v_R, d.projector, out.error_star_dot);
+    const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
+    d.projector.compute(d.nearest.J, M.w_a);
+    const int rank_nearest = d.projector.rank();
+    if (rank_nearest < std::min(M.w_a_support, mech.dof())) {
+      d.projector.compute(p.J, M.w_a);
+      if (d.projector.rank() <= rank_nearest) d.projector.compute(d.nearest.J, M.w_a);
+    }
+    out.wrench_range = d.projector.range(F);
+    const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_range) : 0u;
+    if (!pull) break;
+    release(pull, p);
+  }
+}
+
+// Removes the part of f that would load the passive joints, by the smallest change in the
+// length-scaled wrench norm: f <- f - P(D; J_passive) f, D = diag(1, 1, 1, L^2, L^2, L^2)
+// (docs/theory.md, 6). Afterwards J_passive^T f = 0.
+void keep_renderable(const ControllerModel& M, const Device& dev, ControllerData& d, Vector6& f,
+                     CycleOutput& out) noexcept {
+  if (dev.fully_actuated()) return;
   const int n = dev.dof();
-  out.status = status::kOk;
-  out.torque.setZero(n);
-  out.wrench_null.setZero();
-  out.wrench_range.setZero();
-  out.wrench_unrendered.setZero();
-  out.error_star.setZero();
-  out.error_star_dot.setZero();
-
-  const Eigen::Map<const JointVector> qv(q, n), dqv(dq, n);
-  if (!qv.allFinite() || !dqv.allFinite()) {
-    fault(status::kFaultNonFiniteInput, out);
-    out.theta = theta_;
-    out.theta_star = theta_star_;
-    out.computation_time_us = 0.0;
-    last_ = out;
-    return out.status;
+  Jacobian J_p(6, n - dev.num_actuated());
+  int c = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!dev.actuated(i)) J_p.col(c++) = d.J_R.col(i);
   }
-  if (M.watchdog_s > 0.0 && std::isfinite(t_s)) {
-    if (std::isfinite(last_t_) && (t_s - last_t_ > M.watchdog_s || t_s < last_t_)) {
-      out.status |= status::kWatchdog;
-      ramp_count_ = 0;
-    }
-    last_t_ = t_s;
-  }
+  const double L2 = M.length_scale * M.length_scale;
+  Vector6 D;
+  D << 1.0, 1.0, 1.0, L2, L2, L2;
+  d.projector.compute(J_p, D);
+  out.wrench_unrendered = d.projector.range(f);
+  f -= out.wrench_unrendered;
+}
 
-  // device kinematics (eqs. 13, 15)
-  Jacobian J_R;
-  dev.forward_jacobian(q, out.handle_pose, J_R);
-  Vector6 v_R;
-  v_R.noalias() = J_R * dqv;
-
-  // nearest placement, W_e (eqs. 18-20)
-  // warm start: the last placement moved on by its last change (placements follow the
-  // handle smoothly, so this starts second-order close to the answer), when that change is
-  // between two converged placements: an unconverged one (a handle beyond the mechanism's
-  // reach) wanders, and extrapolating the wandering would throw the start off. The first
-  // cycle after a start, reset or fault starts from where it is.
-  const TrackOptions& opts = first_ ? M.track_initial : M.track;
-  JointVector theta0 =
-      !first_ && extrapolate_ ? warm_start(mech, opts, theta_, theta_prev_) : theta_;
-  JointVector theta_new;
-  Jacobian J_V;
-  const TrackResult r = detail::track(mech, out.handle_pose, theta0, M.w_e_effective, opts,
-                                      theta_new, out.mechanism_pose, J_V);
-  extrapolate_ = !first_ && r.converged && converged_;
-  converged_ = r.converged;
-  theta_prev_ = first_ ? theta_new : theta_;
-  theta_ = theta_new;
-  out.theta = theta_;
-  out.iterations = r.iterations;
-  out.residual = r.residual;
-  if (!r.converged) out.status |= status::kNotConverged;
-  out.error = pose_error(out.mechanism_pose, out.handle_pose);  // e = X_V - X_R (eq. 22)
-  placement_rate(J_V, M.w_e_effective, v_R, out.error_dot);
-  Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);  // eq. 7
-
-  // the filters share W_A: P F = W_A J_V (J_V^T W_A J_V)^+ J_V^T F
-  const RangeFilter P_A(J_V, M.w_a);
-  out.wrench_null = F - P_A.apply(F);  // N(W_A) F (eqs. 9, 11)
-
-  // un-powered placement, W_e* (eq. 25), and the range-space term of eq. 26
-  if (M.under_actuated_term) {
-    if (first_) theta_star_ = theta_;
-    theta0 = !first_ && extrapolate_star_
-                 ? warm_start(mech, opts, theta_star_, theta_star_prev_)
-                 : theta_star_;
-    Jacobian J_Vs;
-    const TrackResult rs = detail::track(mech, out.handle_pose, theta0, M.w_e_star_effective,
-                                         opts, theta_new, out.mechanism_pose_star, J_Vs);
-    extrapolate_star_ = !first_ && rs.converged && converged_star_;
-    converged_star_ = rs.converged;
-    theta_star_prev_ = first_ ? theta_new : theta_star_;
-    theta_star_ = theta_new;
-    out.iterations_star = rs.iterations;
-    out.residual_star = rs.residual;
-    if (!rs.converged) out.status |= status::kNotConverged;
-    out.error_star = pose_error(out.mechanism_pose_star, out.handle_pose);
-    placement_rate(J_Vs, M.w_e_star_effective, v_R, out.error_star_dot);
-    const Vector6 Fs = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
-    out.wrench_range = P_A.apply(Fs);  // P(W_A) F*
-  } else {
-    theta_star_ = theta_;
-    out.iterations_star = 0;
-    out.residual_star = 0.0;
-    out.mechanism_pose_star = out.mechanism_pose;
-  }
-  out.theta_star = theta_star_;
-  first_ = false;
-
-  // eq. 26 (eq. 11 without the range term)
-  Vector6 f = out.wrench_null + out.wrench_range;
-
-  // keep only what the device can render: remove, in the length-scaled metric, the part
-  // of f that would load the passive joints (J_pas^T f = 0 afterwards)
-  if (!dev.fully_actuated()) {
-    const double L = M.length_scale;
-    Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::ColMajor, 6, kMaxDof> Jp(6, n - dev.num_actuated());
-    int c = 0;
-    for (int i = 0; i < n; ++i) {
-      if (dev.actuated(i)) continue;
-      Jp.col(c).head<3>() = J_R.col(i).head<3>();
-      Jp.col(c).tail<3>() = L * J_R.col(i).tail<3>();
-      ++c;
-    }
-    JointMatrix G(c, c);
-    G.noalias() = Jp.transpose() * Jp;
-    JointMatrix Gp;
-    symmetric_pinv(G, Gp);
-    JointVector tau_p(c);
-    c = 0;
-    for (int i = 0; i < n; ++i) {
-      if (!dev.actuated(i)) tau_p[c++] = J_R.col(i).dot(f);
-    }
-    JointVector y(c);
-    y.noalias() = Gp * tau_p;
-    Vector6 delta;
-    delta.noalias() = Jp * y;
-    delta.tail<3>() *= L;
-    out.wrench_unrendered = delta;
-    f -= delta;
-  }
-
-  // safety: force / moment limits preserving direction, ramp-in, joint torque limits
+// Force and moment limits keeping direction, ramp-in, tau = J_R^T f with passive joints at
+// exactly 0 (eq. 8), joint torque limits.
+void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vector6& f,
+            CycleOutput& out) noexcept {
+  const int n = dev.dof();
   double scale = 1.0;
   const double fn = f.head<3>().norm(), mn = f.tail<3>().norm();
   if (fn > M.max_force) scale = std::min(scale, M.max_force / fn);
   if (mn > M.max_torque) scale = std::min(scale, M.max_torque / mn);
   if (scale < 1.0) out.status |= status::kForceClamped;
-  out.ramp = std::min(1.0, static_cast<double>(ramp_count_ + 1) / static_cast<double>(M.ramp_cycles));
-  if (ramp_count_ < M.ramp_cycles) ++ramp_count_;
+  out.ramp = std::min(1.0, static_cast<double>(d.ramp_count + 1) /
+                               static_cast<double>(M.ramp_cycles));
+  if (d.ramp_count < M.ramp_cycles) ++d.ramp_count;
   if (out.ramp < 1.0) out.status |= status::kRamping;
   f *= scale * out.ramp;
 
-  out.torque.noalias() = J_R.transpose() * f;  // eq. 8
+  out.torque.noalias() = d.J_R.transpose() * f;  // eq. 8
   double tscale = 1.0;
   for (int i = 0; i < n; ++i) {
     if (!dev.actuated(i)) {
@@ -420,15 +355,117 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   }
   out.limit_scale = scale * tscale;
   out.wrench = f;
+}
 
-  if (!out.torque.allFinite() || !f.allFinite()) {
-    theta_ = mech.home();
-    theta_star_ = mech.home();
-    fault(status::kFaultNonFiniteOutput, out);
+void begin(int n, CycleOutput& out) noexcept {
+  out.status = status::kOk;
+  out.torque.setZero(n);
+  out.wrench.setZero();
+  out.wrench_null.setZero();
+  out.wrench_range.setZero();
+  out.wrench_unrendered.setZero();
+  out.error_star.setZero();
+  out.error_star_dot.setZero();
+}
+
+}  // namespace
+
+Controller::Controller(std::shared_ptr<const Device> device,
+                       std::shared_ptr<const Mechanism> mechanism,
+                       const ControllerSettings& settings)
+    : device_(std::move(device)), mechanism_(std::move(mechanism)) {
+  if (!device_) throw std::invalid_argument("device: expected a device, got null");
+  if (!mechanism_) throw std::invalid_argument("mechanism: expected a mechanism, got null");
+  model_ = make_controller_model(*device_, *mechanism_, settings);
+  reset();
+  data_.last.torque = JointVector::Zero(device_->dof());
+  data_.last.theta = data_.nearest.theta;
+  data_.last.theta_star = data_.unpowered.theta;
+}
+
+void Controller::reset() noexcept {
+  data_.nearest.theta = mechanism_->home();
+  data_.unpowered.theta = mechanism_->home();
+  data_.first = true;
+  data_.ramp_count = 0;
+  data_.last_t = std::numeric_limits<double>::quiet_NaN();
+}
+
+std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
+                               const Eigen::Ref<const Eigen::VectorXd>& dq, CycleOutput& out,
+                               double t_s) noexcept {
+  if (q.size() != device_->dof() || dq.size() != device_->dof()) {
+    begin(device_->dof(), out);
+    fault(*device_, data_, status::kFaultBadSize, out);
+    data_.last = out;
+    return out.status;
+  }
+  return step(q.data(), dq.data(), out, t_s);
+}
+
+std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& out,
+                               double t_s) noexcept {
+  const auto t_start = std::chrono::steady_clock::now();
+  const Device& dev = *device_;
+  const Mechanism& mech = *mechanism_;
+  const ControllerModel& M = model_;
+  ControllerData& d = data_;
+  begin(dev.dof(), out);
+
+  if (const std::uint32_t bad = check_input(M, dev, q, dq)) {
+    fault(dev, d, bad, out);
+    out.theta = d.nearest.theta;
+    out.theta_star = d.unpowered.theta;
+    out.computation_time_us = 0.0;
+    d.last = out;
+    return out.status;
+  }
+  watchdog(M, d, t_s, out);
+  device_kinematics(dev, d, q, dq);
+  out.handle_pose = d.handle_pose;
+
+  // the two placements (eqs. 18-20, 25)
+  place(M, mech, d.handle_pose, M.w_e_effective, d.first, d.nearest);
+  if (M.under_actuated_term) {
+    if (d.first) d.unpowered.theta = d.nearest.theta;
+    place(M, mech, d.handle_pose, M.w_e_star_effective, d.first, d.unpowered);
+  }
+  d.first = false;
+
+  // eq. 26 (eq. 11 without the range term)
+  null_space_term(M, mech, d, out);
+  if (M.under_actuated_term) range_space_term(M, mech, d, out);
+  Vector6 f = out.wrench_null + out.wrench_range;
+
+  keep_renderable(M, dev, d, f, out);
+  safety(M, dev, d, f, out);
+
+  // outputs
+  const Placement& pn = d.nearest;
+  const Placement& pu = M.under_actuated_term ? d.unpowered : d.nearest;
+  out.theta = pn.theta;
+  out.theta_star = pu.theta;
+  out.mechanism_pose = pn.pose;
+  out.mechanism_pose_star = pu.pose;
+  out.iterations = pn.result.iterations;
+  out.residual = pn.result.residual;
+  out.active = pn.active;
+  out.iterations_star = M.under_actuated_term ? pu.result.iterations : 0;
+  out.residual_star = M.under_actuated_term ? pu.result.residual : 0.0;
+  out.active_star = M.under_actuated_term ? pu.active : 0u;
+  if (!pn.result.converged || (M.under_actuated_term && !pu.result.converged)) {
+    out.status |= status::kNotConverged;
+  }
+  if (!M.under_actuated_term) d.unpowered.theta = pn.theta;
+
+  if (!out.torque.allFinite() || !f.allFinite()) {  // belt and braces: zero, start afresh
+    d.nearest.theta = mech.home();
+    d.unpowered.theta = mech.home();
+    fault(dev, d, status::kFaultNonFiniteOutput, out);
   }
   const auto t_end = std::chrono::steady_clock::now();
   out.computation_time_us = std::chrono::duration<double, std::micro>(t_end - t_start).count();
-  last_ = out;
+  d.last = out;
   return out.status;
 }
 

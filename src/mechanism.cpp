@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "closed_form.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/validate.hpp"
 
@@ -188,6 +189,87 @@ Probe::Probe(const Eigen::Vector3d& plane_point, const Eigen::Vector3d& plane_no
       tangent_(tangent_or_default("tangent", tangent, plane_normal.normalized())),
       length_(length), unilateral_(unilateral) {
   require_finite("plane_point", plane_point);
+}
+
+namespace {
+
+// the tip frame [t1, n x t1, n] of probe-like mechanisms
+Eigen::Matrix3d tip_base(const Eigen::Vector3d& n, const Eigen::Vector3d& t1) {
+  Eigen::Matrix3d B;
+  B << t1, n.cross(t1), n;
+  return B;
+}
+
+// the stylus's tip-to-handle direction at wrist angles (a, b, c): B Rx(a) Ry(b) z
+Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noexcept {
+  const double sa = std::sin(abc[0]), ca = std::cos(abc[0]);
+  const double sb = std::sin(abc[1]), cb = std::cos(abc[1]);
+  return B * Eigen::Vector3d(sb, -sa * cb, ca * cb);
+}
+
+// wrist angles for handle orientation R (R_tip = R Rx(pi)), nearest the start's
+Eigen::Vector3d wrist_angles(const Eigen::Matrix3d& B, const Eigen::Matrix3d& R,
+                             const double* start_abc) noexcept {
+  Eigen::Matrix3d R_tip;
+  R_tip << R.col(0), -R.col(1), -R.col(2);
+  return detail::euler_xyz_nearest(B.transpose() * R_tip,
+                                   Eigen::Vector3d(start_abc[0], start_abc[1], start_abc[2]));
+}
+
+}  // namespace
+
+bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start,
+                  JointVector& theta) const noexcept {
+  double w_p, w_r;
+  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+  const int wrist = unilateral_ ? 3 : 2;  // index of the first wrist joint
+  const Eigen::Matrix3d B = tip_base(normal_, tangent_);
+  const Eigen::Vector3d p_R = target.translation();
+  const double d = normal_.dot(p_R - point_);  // handle height above the plane [m]
+  detail::TiltCost cost;  // tip height d - L cos(phi), phi the stylus's angle from n
+  if (unilateral_) {
+    cost.one_sided = true;
+    cost.a = d;
+    cost.b = length_;
+  } else {
+    cost.p2 = length_ * length_;
+    cost.p1 = -2.0 * d * length_;
+  }
+  Eigen::Matrix3d R;
+  detail::tilt_about_axis(target.linear(), normal_, cost, w_p, w_r,
+                          wrist_direction(B, start.data() + wrist), R);
+  // the tip below the handle for that orientation, brought onto the plane (or left in
+  // front of it when one-sided)
+  Eigen::Vector3d tip = p_R + length_ * R.col(2);
+  const double height = normal_.dot(tip - point_);
+  // in contact the tip sits exactly on the plane, the lift-off joint on its bound
+  const double lift = unilateral_ && height > 1e-12 * length_ ? height : 0.0;
+  tip -= (height - lift) * normal_;
+  theta.resize(dof());
+  theta[0] = B.col(0).dot(tip - point_);
+  theta[1] = B.col(1).dot(tip - point_);
+  if (unilateral_) theta[2] = lift;
+  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
+  return true;
+}
+
+bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& start,
+                       JointVector& theta) const noexcept {
+  double w_p, w_r;
+  if (unilateral_ || !detail::isotropic_blocks(w, w_p, w_r)) return false;
+  const Eigen::Matrix3d B = tip_base(normal_, tangent_);
+  const Eigen::Vector3d v = target.translation() - point_;
+  const double r = v.norm();  // |handle - tip| [m]
+  Eigen::Matrix3d R = target.linear();
+  if (r > 1e-12 * length_) {
+    detail::TiltCost cost;  // |v - L u|^2 = r^2 + L^2 - 2 L r cos(angle(u, v))
+    cost.p1 = -2.0 * length_ * r;
+    detail::tilt_about_axis(target.linear(), v / r, cost, w_p, w_r,
+                            wrist_direction(B, start.data()), R);
+  }
+  theta.resize(3);
+  theta = wrist_angles(B, R, start.data());
+  return true;
 }
 
 static std::vector<Joint> pivot_joints(bool unilateral) {

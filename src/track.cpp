@@ -47,6 +47,18 @@ inline void clamp_to_limits(const Mechanism& m, JointVector& x) noexcept {
   for (int i = 0; i < m.dof(); ++i) x[i] = std::min(std::max(x[i], m.lower()[i]), m.upper()[i]);
 }
 
+// joints on a bound that the cost pushes against: -grad_i = 2 g_i points past the bound
+std::uint32_t active_set(const Mechanism& m, const JointVector& theta,
+                         const JointVector& g) noexcept {
+  std::uint32_t active = 0;
+  for (int i = 0; i < m.dof(); ++i) {
+    if ((theta[i] <= m.lower()[i] && g[i] < 0.0) || (theta[i] >= m.upper()[i] && g[i] > 0.0)) {
+      active |= 1u << i;
+    }
+  }
+  return active;
+}
+
 }  // namespace
 
 TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVector& theta0,
@@ -63,6 +75,16 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                           Jacobian& J) noexcept {
   const int n = mechanism.dof();
   TrackResult result;
+  if (options.closed_form && mechanism.place(target, weights, theta0, theta)) {
+    Eval ev;
+    evaluate(mechanism, target, theta, weights, ev);
+    result.converged = true;
+    result.residual = std::sqrt(std::max(ev.cost, 0.0));
+    result.active = active_set(mechanism, theta, ev.g);
+    pose = ev.T;
+    J = ev.J;
+    return result;
+  }
   theta = theta0;
   clamp_to_limits(mechanism, theta);
   JointVector step_cap(n);
@@ -157,6 +179,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
   if (!result.converged && ev.g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
     result.converged = true;
   }
+  result.active = active_set(mechanism, theta, ev.g);
   result.residual = std::sqrt(std::max(ev.cost, 0.0));
   pose = ev.T;  // ev is always the evaluation at theta
   J = ev.J;

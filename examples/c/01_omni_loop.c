@@ -35,7 +35,7 @@ int main(void) {
     q[4] = 0.6;
     dq[0] = 0.4 * cos(2.0 * t);
     dq[1] = 0.3 * cos(3.0 * t);
-    const uint32_t status = vm_controller_step(controller, q, dq, t, tau);
+    const uint32_t status = vm_controller_step(controller, q, dq, n, t, tau);
     if (k % 100 == 0) {
       vm_controller_diagnostics(controller, &diag);
       const double f = sqrt(diag.wrench[0] * diag.wrench[0] + diag.wrench[1] * diag.wrench[1] +

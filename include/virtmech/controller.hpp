@@ -1,9 +1,12 @@
 // The virtual-mechanism controller: one servo cycle turns device joint state into joint
 // torques (paper eqs. 11 and 26 in their six-degree-of-freedom form, plus safety).
 //
-// Model / workspace split: ControllerModel is the immutable, validated configuration
-// (every default resolved); the Controller holds it with the state the cycle updates
-// (warm starts, ramp counter) and every buffer, allocated once at construction.
+// Model / workspace split (as Pinocchio's Model / Data): ControllerModel is the immutable,
+// validated configuration (every default resolved); ControllerData holds every buffer and
+// all state the cycle updates (both placements, the ramp counter), allocated once. The
+// cycle is a straight line of named stages over the two (src/controller.cpp):
+//   check_input -> device_kinematics -> place (nearest, un-powered) -> wrench (eq. 26)
+//   -> keep_renderable -> safety -> outputs
 #pragma once
 
 #include <cstdint>
@@ -11,6 +14,7 @@
 #include <optional>
 
 #include "virtmech/device.hpp"
+#include "virtmech/filters.hpp"
 #include "virtmech/mechanism.hpp"
 #include "virtmech/track.hpp"
 
@@ -44,6 +48,7 @@ constexpr std::uint32_t kWatchdog = 1u << 4;        //!< cycle gap exceeded the 
 constexpr std::uint32_t kFaultNonFiniteInput = 1u << 8;   //!< q or dq not finite
 constexpr std::uint32_t kFaultNonFiniteOutput = 1u << 9;  //!< computation produced NaN/inf
 constexpr std::uint32_t kFaultBadSize = 1u << 10;         //!< q or dq of the wrong length
+constexpr std::uint32_t kFaultOutOfRange = 1u << 11;      //!< q beyond the joint range + margin
 constexpr std::uint32_t kFaultMask = 0xFF00u;
 }  // namespace status
 
@@ -68,6 +73,10 @@ struct ControllerSettings {
   /// Weight of U added to W_e and to W_e* so that directions a placement's weights leave
   /// undetermined are settled by the full pose error instead of drifting.
   double secondary_weight = 1e-6;
+  /// q may leave the device's joint range by this much before the cycle faults
+  /// (fault_out_of_range): revolute joints [rad], prismatic joints [m].
+  double range_margin_rad = 5.0 * 3.14159265358979323846 / 180.0;
+  double range_margin_m = 0.005;
 };
 
 /// The validated configuration with every default resolved.
@@ -75,6 +84,7 @@ struct ControllerModel {
   Vector6 kp, kv, w_a, w_e, w_e_star;
   Vector6 w_e_effective;       //!< W_e + secondary_weight * U, as the solver uses it
   Vector6 w_e_star_effective;  //!< W_e* + secondary_weight * U
+  int w_a_support = 0;         //!< task axes W_A weighs (> 0)
   double length_scale = 0.1;
   ControlLaw law = ControlLaw::kAuto;
   bool under_actuated_term = false;  //!< eq. 26's range-space term is evaluated
@@ -85,6 +95,7 @@ struct ControllerModel {
   double max_force = kInf, max_torque = kInf;
   TrackOptions track, track_initial;
   std::array<bool, 6> renderable{};  //!< task axes the passive joints never move
+  JointVector q_min, q_max;          //!< plausible q: the device's range widened by the margin
 };
 
 /// Everything one cycle reports. Fixed-capacity members: copying never allocates.
@@ -103,10 +114,39 @@ struct CycleOutput {
   Pose mechanism_pose_star = Pose::Identity();
   int iterations = 0, iterations_star = 0;
   double residual = 0.0, residual_star = 0.0;
+  /// Joints of each placement held at a limit that acts (bit i: joint i), i.e. locked.
+  std::uint32_t active = 0, active_star = 0;
   double ramp = 0.0;              //!< ramp-in factor applied [0, 1]
   double limit_scale = 1.0;       //!< factor applied by force and torque limits (0, 1]
   std::uint32_t status = status::kOk;
   double computation_time_us = 0.0;  //!< this cycle's own computation time [µs]
+};
+
+/// One placement of the mechanism (eqs. 18-20) with its state: used twice per cycle, with
+/// W_e (nearest) and with W_e* (un-powered, eq. 25).
+struct Placement {
+  JointVector theta;       //!< the placement
+  JointVector theta_prev;  //!< the placement one cycle earlier (warm start)
+  bool converged = false;  //!< the last placement converged
+  bool extrapolate = false;  //!< ... and so did the one before it
+  Pose pose = Pose::Identity();  //!< mechanism handle pose at theta
+  Jacobian J;              //!< J_V at theta, every column
+  Jacobian J_free;         //!< J_V without the columns of the active joints
+  std::uint32_t active = 0;  //!< joints held at a limit that acts
+  TrackResult result;
+};
+
+/// Every buffer and all state of the cycle, allocated once (ControllerData(model, ...)).
+struct ControllerData {
+  Placement nearest, unpowered;
+  Pose handle_pose = Pose::Identity();
+  Jacobian J_R;     //!< device Jacobian at q
+  Vector6 v_R;      //!< handle twist J_R dq
+  WeightedProjector projector;  //!< the one P(W) / N(W) the stages share
+  bool first = true;            //!< next cycle starts placements afresh
+  long ramp_count = 0;
+  double last_t = std::numeric_limits<double>::quiet_NaN();
+  CycleOutput last;
 };
 
 class Controller {
@@ -132,25 +172,14 @@ class Controller {
   std::shared_ptr<const Device> device_ptr() const noexcept { return device_; }
   std::shared_ptr<const Mechanism> mechanism_ptr() const noexcept { return mechanism_; }
   const ControllerModel& model() const noexcept { return model_; }
-  const CycleOutput& last() const noexcept { return last_; }
+  const ControllerData& data() const noexcept { return data_; }
+  const CycleOutput& last() const noexcept { return data_.last; }
 
  private:
-  void fault(std::uint32_t bits, CycleOutput& out) noexcept;
-  void placement_rate(const Jacobian& J_V, const Vector6& W, const Vector6& v_R,
-                      Vector6& e_dot) const noexcept;
-
   std::shared_ptr<const Device> device_;
   std::shared_ptr<const Mechanism> mechanism_;
   ControllerModel model_;
-  // state
-  JointVector theta_, theta_star_;
-  JointVector theta_prev_, theta_star_prev_;  // the placements one cycle earlier (warm start)
-  bool converged_ = false, converged_star_ = false;      // the last placements converged
-  bool extrapolate_ = false, extrapolate_star_ = false;  // ... and the ones before them
-  bool first_ = true;
-  long ramp_count_ = 0;
-  double last_t_ = std::numeric_limits<double>::quiet_NaN();
-  CycleOutput last_;
+  ControllerData data_;
 };
 
 /// Resolves settings against a device and mechanism (what the Controller constructor does).

@@ -126,6 +126,13 @@ class PhantomOmni final : public SerialDevice {
   PhantomOmniParams params_;
 };
 
+/// Defaults of the Planar3R model (one place: the C API and the bindings use them).
+struct Planar3RDefaults {
+  static constexpr double kLink = 0.2;         //!< link1 = link2 [m]
+  static constexpr double kTorqueLimit = 1.0;  //!< actuated joints [N·m]
+  static constexpr double kMaxForce = 5.0;     //!< [N]
+};
+
 /// The paper's Fig. 8 robot: three revolute joints about the base z axis, in the base's
 /// x-y plane; links `link1`, `link2`; the handle origin on the third (distal, un-powered)
 /// joint, the stylus in the plane at angle q0 + q1 + q2 from the base x axis.

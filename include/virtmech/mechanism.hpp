@@ -41,6 +41,16 @@ class Mechanism {
   /// Handle pose and geometric Jacobian (6 x dof(), rows [v; w], world axes) at x.
   virtual void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept = 0;
 
+  /// Optional closed-form placement: theta (dof() entries) minimising the weighted pose
+  /// error e^T diag(w) e, e = pose_error(target, forward(theta)), within the limits, on the
+  /// branch nearest `start`. Returns false where it has none for these weights; the
+  /// placement then runs the weighted Gauss-Newton of eqs. 18-20. noexcept, allocation-free.
+  virtual bool place(const Pose& target, const Vector6& w, const JointVector& start,
+                     JointVector& theta) const noexcept {
+    (void)target, (void)w, (void)start, (void)theta;
+    return false;
+  }
+
  protected:
   /// Validates and stores the joint description; throws std::invalid_argument naming the
   /// bad parameter. `home` is moved into the limits.
@@ -108,6 +118,9 @@ class Probe final : public ChainMechanism {
   const Eigen::Vector3d& tangent() const noexcept { return tangent_; }
   double length() const noexcept { return length_; }
   bool unilateral() const noexcept { return unilateral_; }
+  /// Closed form for weights isotropic within position and within rotation (every default).
+  bool place(const Pose& target, const Vector6& w, const JointVector& start,
+             JointVector& theta) const noexcept override;
 
  private:
   Eigen::Vector3d point_, normal_, tangent_;
@@ -127,6 +140,9 @@ class PointPivot final : public ChainMechanism {
   const Eigen::Vector3d& tangent() const noexcept { return tangent_; }
   double length() const noexcept { return length_; }
   bool unilateral() const noexcept { return unilateral_; }
+  /// Closed form for weights isotropic within position and within rotation, bilateral only.
+  bool place(const Pose& target, const Vector6& w, const JointVector& start,
+             JointVector& theta) const noexcept override;
 
  private:
   Eigen::Vector3d point_, normal_, tangent_;

@@ -3,6 +3,8 @@
 // joint limits.
 #pragma once
 
+#include <cstdint>
+
 #include "virtmech/mechanism.hpp"
 
 namespace virtmech {
@@ -17,6 +19,8 @@ struct TrackOptions {
   /// length scale.
   double max_step_prismatic = 0.5;
   double damping = 1e-12;         //!< Levenberg damping relative to trace(J^T W J) / n
+  /// Use the mechanism's closed-form placement where it has one (Mechanism::place).
+  bool closed_form = true;
 };
 
 /// What one placement found.
@@ -24,6 +28,9 @@ struct TrackResult {
   int iterations = 0;      //!< Gauss-Newton iterations performed
   double residual = 0.0;   //!< sqrt(e^T W e) at the returned theta
   bool converged = false;  //!< a tolerance was met before max_iterations
+  /// Joints held at a limit that acts (bit i: joint i): theta_i sits on its bound and the
+  /// weighted cost would fall if it could move past it (the bound's KKT multiplier is > 0).
+  std::uint32_t active = 0;
 };
 
 /// Finds theta minimising the weighted pose error e = pose_error(target, Phi_V(theta)),

@@ -8,6 +8,7 @@
 #include <nanobind/stl/vector.h>
 
 #include <cmath>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -25,7 +26,14 @@ struct PlacementResult {
   int iterations = 0;
   double residual = 0.0;
   bool converged = false;
+  std::uint32_t active = 0;
 };
+
+Eigen::Matrix<bool, Eigen::Dynamic, 1> joint_mask(std::uint32_t bits, Eigen::Index n) {
+  Eigen::Matrix<bool, Eigen::Dynamic, 1> a(n);
+  for (Eigen::Index i = 0; i < n; ++i) a[i] = ((bits >> i) & 1u) != 0;
+  return a;
+}
 
 using Array1 = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 
@@ -112,11 +120,47 @@ Eigen::Vector3d opt_vec3(const char* name, nb::handle obj) {
 }
 
 // joint values for a chain of `n` joints: fast path for float64 arrays, else converted
-JointVector joint_values(const char* name, nb::handle obj, int n) {
-  if (nb::isinstance<Array1>(obj)) {
-    auto arr = nb::cast<Array1>(obj);
-    if (static_cast<int>(arr.shape(0)) == n) return Eigen::Map<const JointVector>(arr.data(), n);
+// A contiguous float64 buffer of n doubles (NumPy caches its buffer description, so after
+// the first call on an array this allocates nothing); writable if asked. nullptr if obj is
+// not one (the caller converts or raises).
+struct DoubleBuffer {
+  Py_buffer view{};
+  bool ok = false;
+  DoubleBuffer(nb::handle obj, int n, bool writable) {
+    if (!PyObject_CheckBuffer(obj.ptr())) return;
+    // a NumPy array says its type through dtype.num (12: float64) without the format
+    // string, which NumPy would build anew on every request
+    static PyObject* const kDtype = PyUnicode_InternFromString("dtype");  // made once
+    static PyObject* const kNum = PyUnicode_InternFromString("num");
+    int numpy_type = -1;
+    if (PyObject* dt = PyObject_GetAttr(obj.ptr(), kDtype)) {
+      if (PyObject* num = PyObject_GetAttr(dt, kNum)) {
+        numpy_type = static_cast<int>(PyLong_AsLong(num));
+        Py_DECREF(num);
+      }
+      Py_DECREF(dt);
+    }
+    PyErr_Clear();
+    const int flags = PyBUF_C_CONTIGUOUS | (numpy_type < 0 ? PyBUF_FORMAT : 0) |
+                      (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj.ptr(), &view, flags) != 0) {
+      PyErr_Clear();
+      return;
+    }
+    const bool is_double = numpy_type >= 0 ? numpy_type == 12
+                                           : view.format && view.format[0] == 'd' &&
+                                                 view.format[1] == '\0';
+    ok = is_double && view.ndim == 1 && view.shape[0] == n && view.itemsize == 8;
   }
+  ~DoubleBuffer() {
+    if (view.obj) PyBuffer_Release(&view);
+  }
+  double* data() const { return ok ? static_cast<double*>(view.buf) : nullptr; }
+};
+
+JointVector joint_values(const char* name, nb::handle obj, int n) {
+  const DoubleBuffer buf(obj, n, false);
+  if (buf.ok) return Eigen::Map<const JointVector>(buf.data(), n);
   return to_vector(name, obj, n);
 }
 
@@ -130,6 +174,8 @@ std::vector<Joint> to_joints(nb::handle seq) {
   }
   return joints;
 }
+
+nb::tuple triple(const std::array<double, 3>& a) { return nb::make_tuple(a[0], a[1], a[2]); }
 
 nb::list to_list(const Eigen::Vector3d& v) {
   nb::list l;
@@ -175,7 +221,8 @@ nb::list status_names(std::uint32_t s) {
       {status::kWatchdog, "watchdog"},
       {status::kFaultNonFiniteInput, "fault_nonfinite_input"},
       {status::kFaultNonFiniteOutput, "fault_nonfinite_output"},
-      {status::kFaultBadSize, "fault_bad_size"}};
+      {status::kFaultBadSize, "fault_bad_size"},
+      {status::kFaultOutOfRange, "fault_out_of_range"}};
   nb::list l;
   for (const auto& [bit, name] : names)
     if (s & bit) l.append(name);
@@ -263,6 +310,8 @@ nb::dict model_dict(const ControllerModel& m) {
   d["max_torque"] = m.max_torque;
   d["max_iterations"] = m.track.max_iterations;
   d["max_iterations_initial"] = m.track_initial.max_iterations;
+  d["q_min"] = Eigen::VectorXd(m.q_min);
+  d["q_max"] = Eigen::VectorXd(m.q_max);
   nb::list r;
   for (bool b : m.renderable) r.append(b);
   d["renderable"] = r;
@@ -288,6 +337,7 @@ NB_MODULE(_core, m) {
   m.attr("STATUS_FAULT_NONFINITE_INPUT") = status::kFaultNonFiniteInput;
   m.attr("STATUS_FAULT_NONFINITE_OUTPUT") = status::kFaultNonFiniteOutput;
   m.attr("STATUS_FAULT_BAD_SIZE") = status::kFaultBadSize;
+  m.attr("STATUS_FAULT_OUT_OF_RANGE") = status::kFaultOutOfRange;
   m.attr("STATUS_FAULT_MASK") = status::kFaultMask;
   m.def("status_names", &status_names, "status"_a, "Names of the bits set in a status word.");
 
@@ -627,9 +677,9 @@ NB_MODULE(_core, m) {
           },
           "l1"_a = PhantomOmniParams().l1, "l2"_a = PhantomOmniParams().l2,
           "max_force"_a = PhantomOmniParams().max_force,
-          "motor_torque_limit"_a = nb::make_tuple(0.44, 0.44, 0.44),
-          "gimbal_offset"_a = nb::make_tuple(0.0, 0.0, 0.0),
-          "gimbal_sign"_a = nb::make_tuple(1.0, 1.0, 1.0),
+          "motor_torque_limit"_a = triple(PhantomOmniParams().motor_torque_limit),
+          "gimbal_offset"_a = triple(PhantomOmniParams().gimbal_offset),
+          "gimbal_sign"_a = triple(PhantomOmniParams().gimbal_sign),
           "stiffness"_a = PhantomOmniParams().stiffness, "damping"_a = PhantomOmniParams().damping)
       .def_prop_ro("l1", [](const PhantomOmni& d) { return d.params().l1; }, "[m]")
       .def_prop_ro("l2", [](const PhantomOmni& d) { return d.params().l2; }, "[m]")
@@ -658,8 +708,9 @@ NB_MODULE(_core, m) {
             const Pose B = base.is_none() ? Pose::Identity() : to_pose("base", base);
             new (self) Planar3R(link1, link2, B, torque_limit, max_force);
           },
-          "link1"_a = 0.2, "link2"_a = 0.2, "base"_a = nb::none(), "torque_limit"_a = 1.0,
-          "max_force"_a = 5.0, "link1, link2 [m]; base (4, 4); torque_limit [N·m]; max_force [N].")
+          "link1"_a = Planar3RDefaults::kLink, "link2"_a = Planar3RDefaults::kLink,
+          "base"_a = nb::none(), "torque_limit"_a = Planar3RDefaults::kTorqueLimit,
+          "max_force"_a = Planar3RDefaults::kMaxForce, "link1, link2 [m]; base (4, 4); torque_limit [N·m]; max_force [N].")
       .def_prop_ro("link1", &Planar3R::link1)
       .def_prop_ro("link2", &Planar3R::link2)
       .def("to_dict", [](const Planar3R& d) {
@@ -679,6 +730,9 @@ NB_MODULE(_core, m) {
       .def_ro("iterations", &PlacementResult::iterations)
       .def_ro("residual", &PlacementResult::residual, "sqrt(e^T W e) at theta")
       .def_ro("converged", &PlacementResult::converged)
+      .def_prop_ro("active",
+                   [](const PlacementResult& r) { return joint_mask(r.active, r.theta.size()); },
+                   "Joints held at a limit that acts (dof,) of bool.")
       .def("__repr__", [](const PlacementResult& r) {
         std::ostringstream os;
         os << "TrackResult(theta=" << format_vector(r.theta) << ", iterations=" << r.iterations
@@ -690,7 +744,7 @@ NB_MODULE(_core, m) {
   m.def(
       "track",
       [](const Mechanism& mech, nb::handle target, nb::handle theta0, nb::handle weights,
-         int max_iterations) {
+         int max_iterations, bool closed_form) {
         const Pose T = to_pose("target_pose", target);
         const JointVector th0 =
             theta0.is_none() ? mech.home() : joint_values("theta0", theta0, mech.dof());
@@ -709,22 +763,28 @@ NB_MODULE(_core, m) {
         }
         TrackOptions opts;
         opts.max_iterations = max_iterations;
+        opts.closed_form = closed_form;
         PlacementResult out;
         const TrackResult r = track(mech, T, th0, W, opts, out.theta);
         out.iterations = r.iterations;
         out.residual = r.residual;
         out.converged = r.converged;
+        out.active = r.active;
         return out;
       },
       "mechanism"_a, "target_pose"_a, "theta0"_a = nb::none(), "weights"_a = nb::none(),
-      "max_iterations"_a = 20,
-      "Weighted Gauss-Newton placement (eqs. 18-20): theta minimising e^T diag(W) e with "
-      "e = pose_error(target_pose, mechanism.forward(theta)); theta0 (dof,) defaults to the "
-      "mechanism's home, weights (6,) to [1 1 1 L^2 L^2 L^2]. Returns .theta, .iterations, "
-      ".residual, .converged.");
+      "max_iterations"_a = 20, "closed_form"_a = true,
+      "The placement of eqs. 18-20: theta minimising e^T diag(W) e with e = "
+      "pose_error(target_pose, mechanism.forward(theta)), within the joint limits; theta0 "
+      "(dof,) (the warm start) defaults to the mechanism's home, weights (6,) to "
+      "[1 1 1 L^2 L^2 L^2]. The mechanism's closed form where it has one (Probe, PointPivot "
+      "with weights isotropic in position and in rotation) unless closed_form=False, else "
+      "weighted Gauss-Newton. Returns .theta, .iterations (0: closed form), .residual, "
+      ".converged, .active (joints held at a limit).");
 
   // --- controller
   nb::class_<CycleOutput>(m, "CycleOutput", "Everything one controller cycle reports.")
+      .def(nb::init<>(), "An empty output, to be filled by Controller.step(..., out=...).")
       .def_prop_ro("torque", [](const CycleOutput& o) { return Eigen::VectorXd(o.torque); },
                    "Joint torques (n,) [N·m or N]; exactly 0 on passive joints.")
       .def_prop_ro("wrench", [](const CycleOutput& o) { return Eigen::VectorXd(o.wrench); },
@@ -753,6 +813,12 @@ NB_MODULE(_core, m) {
       .def_prop_ro("mechanism_pose_star", [](const CycleOutput& o) {
         return Eigen::Matrix4d(o.mechanism_pose_star.matrix());
       })
+      .def_prop_ro("active", [](const CycleOutput& o) { return joint_mask(o.active, o.theta.size()); },
+                   "Joints of the nearest placement held at a limit that acts (m,) of bool: "
+                   "locked for the filters (a one-sided limit renders contact).")
+      .def_prop_ro("active_star",
+                   [](const CycleOutput& o) { return joint_mask(o.active_star, o.theta_star.size()); },
+                   "Joints of the un-powered placement held at a limit that acts (m,).")
       .def_ro("iterations", &CycleOutput::iterations)
       .def_ro("iterations_star", &CycleOutput::iterations_star)
       .def_ro("residual", &CycleOutput::residual)
@@ -773,7 +839,7 @@ NB_MODULE(_core, m) {
              double length_scale, const std::string& law, const std::string& error_velocity,
              double period_s, double ramp_time_s, double watchdog_s, double max_force,
              double max_torque, int max_iterations, int max_iterations_initial,
-             double secondary_weight) {
+             double secondary_weight, double range_margin_rad, double range_margin_m) {
             ControllerSettings s;
             if (!kp.is_none()) s.kp = to_vec6("kp", kp);
             if (!kv.is_none()) s.kv = to_vec6("kv", kv);
@@ -791,6 +857,8 @@ NB_MODULE(_core, m) {
             s.max_iterations = max_iterations;
             s.max_iterations_initial = max_iterations_initial;
             s.secondary_weight = secondary_weight;
+            s.range_margin_rad = range_margin_rad;
+            s.range_margin_m = range_margin_m;
             new (self) Controller(std::move(device), std::move(mechanism), s);
           },
           "device"_a, "mechanism"_a, nb::kw_only(), "kp"_a = nb::none(), "kv"_a = nb::none(),
@@ -801,24 +869,53 @@ NB_MODULE(_core, m) {
           "max_iterations"_a = ControllerSettings().max_iterations,
           "max_iterations_initial"_a = ControllerSettings().max_iterations_initial,
           "secondary_weight"_a = ControllerSettings().secondary_weight,
+          "range_margin_rad"_a = ControllerSettings().range_margin_rad,
+          "range_margin_m"_a = ControllerSettings().range_margin_m,
           "Controller(device, mechanism, **settings). Gains and weights are 6-vectors "
           "[x y z rx ry rz]; unset ones take the defaults of docs/theory.md (derived from the "
           "device's actuation and the length scale). law: 'auto' | 'null_space' (eq. 11) | "
           "'under_actuated' (eq. 26).")
       .def(
           "step",
-          [](Controller& self, nb::handle q, nb::handle dq, double t) {
+          [](Controller& self, nb::handle q, nb::handle dq, double t, nb::handle out,
+             nb::handle torque) -> nb::object {
             const int n = self.device().dof();
             const JointVector qv = joint_values("q", q, n);
             const JointVector dqv = joint_values("dq", dq, n);
-            CycleOutput out;
-            self.step(qv.data(), dqv.data(), out, t);
-            return out;
+            nb::object result;
+            CycleOutput* o = nullptr;
+            if (out.is_none()) {
+              result = nb::cast(CycleOutput());
+            } else if (nb::isinstance<CycleOutput>(out)) {
+              result = nb::borrow(out);
+            } else {
+              throw nb::type_error(("out: expected a virtmech.CycleOutput to fill, got " +
+                                    short_repr(out)).c_str());
+            }
+            o = nb::inst_ptr<CycleOutput>(result);
+            std::optional<DoubleBuffer> tau;
+            if (!torque.is_none()) {
+              tau.emplace(torque, n, true);
+              if (!tau->ok) {
+                throw nb::type_error(("torque: expected a writable, contiguous float64 array "
+                                      "of shape (" + std::to_string(n) + ",), got " +
+                                      short_repr(torque)).c_str());
+              }
+            }
+            self.step(qv.data(), dqv.data(), *o, t);
+            if (tau) {
+              for (int i = 0; i < n; ++i) tau->data()[i] = o->torque[i];
+            }
+            return result;
           },
-          "q"_a, "dq"_a, "t"_a = std::numeric_limits<double>::quiet_NaN(),
+          "q"_a, "dq"_a, "t"_a = std::numeric_limits<double>::quiet_NaN(), nb::kw_only(),
+          "out"_a = nb::none(), "torque"_a = nb::none(),
           "One servo cycle: device joint positions q (n,) and velocities dq (n,) in; returns a "
-          "CycleOutput. t: the cycle's time stamp [s] for the watchdog (optional). Non-finite "
-          "inputs give zero torque and a fault status, never an exception.")
+          "CycleOutput. t: the cycle's time stamp [s] for the watchdog (optional). out: a "
+          "CycleOutput to fill in place (returned); torque: a float64 array (n,) to receive "
+          "the joint torques. With both, and q, dq float64 arrays, a Python servo loop creates "
+          "no object per cycle. Non-finite or implausible inputs give zero torque and a fault "
+          "status, never an exception.")
       .def("reset", &Controller::reset, "Restart: placements from home, ramp-in from zero.")
       .def_prop_ro("device", [](const Controller& c) { return std::const_pointer_cast<Device>(c.device_ptr()); })
       .def_prop_ro("mechanism", [](const Controller& c) { return std::const_pointer_cast<Mechanism>(c.mechanism_ptr()); })

@@ -206,6 +206,8 @@ class NpChain:
         self.upper = np.full(n, np.inf) if upper is None else np.asarray(upper, float)
         self.length_scale = length_scale
         self.home = np.clip(np.zeros(n), self.lower, self.upper)
+        #: closed-form placement (target, W, start) -> theta or None, where the core has one
+        self.place: Any = None
 
     def _motion(self, i: int, x: float) -> np.ndarray:
         if self.types[i] == "revolute":
@@ -305,8 +307,73 @@ def np_probe(point: Any, normal: Any, length: float) -> NpChain:
     ux, uy, uz = np.eye(3)
     joints = [("prismatic", ux, _pose()), ("prismatic", uy, _pose()), ("revolute", ux, _pose()),
               ("revolute", uy, _pose()), ("revolute", uz, _pose())]
-    return NpChain(_tangent_frame(point, n, _any_orthogonal(n)), joints,
-                   _handle_behind_tip(length), length_scale=length)
+    chain = NpChain(_tangent_frame(point, n, _any_orthogonal(n)), joints,
+                    _handle_behind_tip(length), length_scale=length)
+    chain.place = lambda T, W, start: np_probe_place(chain, length, T, W, start)
+    return chain
+
+
+def np_probe_place(m: NpChain, L: float, T: np.ndarray, W: np.ndarray,
+                   start: np.ndarray) -> np.ndarray | None:
+    """The probe's weighted optimum in closed form (docs/theory.md, section 4): the stylus's
+    angle phi from the normal minimises wp (d - L cos phi)^2 + wr (phi - phi_r)^2, the
+    orientation is the handle's turned toward the normal, the tip below the handle."""
+    if not (W[0] == W[1] == W[2] and W[3] == W[4] == W[5]):
+        return None
+    wp, wr = W[0], W[3]
+    B, p0 = m.base[:3, :3], m.base[:3, 3]
+    n = B[:, 2]
+    d = float(n @ (T[:3, 3] - p0))
+    u_r = -T[:3, 2]
+    phi_r = math.atan2(float(np.linalg.norm(np.cross(u_r, n))), float(u_r @ n))
+    phi0 = math.acos(min(1.0, max(-1.0, d / L)))
+    phi = phi_r
+    if phi0 != phi_r and wp > 0.0:
+        lo, hi = min(phi0, phi_r), max(phi0, phi_r)
+        phi = phi_r if wr * (hi - lo) ** 2 > wp else phi0
+        for _ in range(100):  # Newton inside the bracket where f' runs from - to +
+            c, s_ = math.cos(phi), math.sin(phi)
+            dc = 2.0 * L * L * c - 2.0 * d * L
+            f1 = wp * (-dc * s_) + 2.0 * wr * (phi - phi_r)
+            f2 = wp * (2.0 * L * L * s_ * s_ - dc * c) + 2.0 * wr
+            if f1 < 0.0:
+                lo = phi
+            elif f1 > 0.0:
+                hi = phi
+            else:
+                break
+            nxt = phi - f1 / f2 if f2 > 0.0 else 0.5 * (lo + hi)
+            if not lo < nxt < hi:
+                nxt = 0.5 * (lo + hi)
+            done = abs(nxt - phi) <= 1e-16 * (1.0 + abs(phi)) or hi - lo <= 4e-16 * (1.0 + hi)
+            phi = nxt
+            if done:
+                break
+    R = T[:3, :3]
+    if phi != phi_r:
+        k = np.cross(u_r, n)
+        if np.linalg.norm(k) < 1e-12:  # along the normal: tilt as the start does
+            sa, ca, sb, cb = math.sin(start[2]), math.cos(start[2]), math.sin(start[3]), \
+                math.cos(start[3])
+            h = B @ np.array([sb, -sa * cb, ca * cb])
+            h = h - (h @ n) * n
+            if np.linalg.norm(h) < 1e-12:
+                h = _any_orthogonal(n)
+            R = _rot(np.cross(u_r, h) / np.linalg.norm(np.cross(u_r, h)), abs(phi - phi_r)) @ R
+        else:
+            R = _rot(k / np.linalg.norm(k), phi_r - phi) @ R
+    tip = T[:3, 3] + L * R[:, 2]
+    tip = tip - float(n @ (tip - p0)) * n
+    M = B.T @ (R * np.array([1.0, -1.0, -1.0]))  # R_tip = R Rx(pi); M = Rx(a) Ry(b) Rz(c)
+    e1 = np.array([math.atan2(-M[1, 2], M[2, 2]),
+                   math.atan2(M[0, 2], math.hypot(M[1, 2], M[2, 2])),
+                   math.atan2(-M[0, 1], M[0, 0])])
+    e2 = np.array([e1[0] + math.pi, math.pi - e1[1], e1[2] + math.pi])
+    ref = start[2:5]
+    e1 = e1 + 2 * math.pi * np.round((ref - e1) / (2 * math.pi))
+    e2 = e2 + 2 * math.pi * np.round((ref - e2) / (2 * math.pi))
+    abc = e1 if np.sum((e1 - ref) ** 2) <= np.sum((e2 - ref) ** 2) else e2
+    return np.r_[B[:, 0] @ (tip - p0), B[:, 1] @ (tip - p0), abc]
 
 
 def np_planar_arm(pivot: Any, normal: Any, length: float, zero_direction: Any) -> NpChain:
@@ -337,6 +404,10 @@ def np_track(m: NpChain, target: np.ndarray, theta0: np.ndarray, W: np.ndarray,
     """Weighted, damped Gauss-Newton placement (eqs. 18-20) with the core's step rules,
     stopped after `iterations` iterations or at the core's tolerances. Returns theta, the
     iterations done and whether a tolerance was met."""
+    if m.place is not None:
+        placed = m.place(target, W, theta0)
+        if placed is not None:
+            return placed, 0, True
     theta = np.clip(theta0, m.lower, m.upper)
     cap = np.array([0.5 if t == "revolute" else 0.5 * m.length_scale for t in m.types])
     n = m.dof
@@ -464,7 +535,18 @@ class NpController:
             T_s, J_s = mech.forward_jacobian(self.theta_star)
             e_s = pose_error(T_s, T_R)
             Fs = self.kp * e_s + self.kv * self._rate(J_s, self.w_e_star, v_R)
-            f = f + WJ_A @ (H_Ap @ (J_V.T @ Fs))
+            # P at the nearest placement, or at the un-powered one where the nearest is
+            # singular and that one is not (docs/theory.md, section 6)
+            sw = np.sqrt(self.w_a)[:, None]
+            rank_v = np.linalg.matrix_rank(sw * J_V, tol=1e-10 * max(np.abs(sw * J_V).max(), 1e-300))
+            if rank_v < min(int((self.w_a > 0).sum()), mech.dof):
+                rank_s = np.linalg.matrix_rank(sw * J_s, tol=1e-10 * max(np.abs(sw * J_s).max(), 1e-300))
+                if rank_s > rank_v:
+                    WJ_s = self.w_a[:, None] * J_s
+                    f = f + WJ_s @ (symmetric_pinv(J_s.T @ WJ_s) @ (J_s.T @ Fs))
+                    Fs = None
+            if Fs is not None:
+                f = f + WJ_A @ (H_Ap @ (J_V.T @ Fs))
         else:
             self.theta_star = self.theta.copy()
         self.first = False

@@ -10,6 +10,9 @@ from ._core import (
     STATUS_FAULT_MASK as FAULT_MASK,
 )
 from ._core import (
+    STATUS_FAULT_OUT_OF_RANGE as FAULT_OUT_OF_RANGE,
+)
+from ._core import (
     STATUS_FAULT_NONFINITE_INPUT as FAULT_NONFINITE_INPUT,
 )
 from ._core import (
@@ -38,6 +41,7 @@ from ._core import status_names as names
 __all__ = [
     "FAULT_BAD_SIZE",
     "FAULT_MASK",
+    "FAULT_OUT_OF_RANGE",
     "FAULT_NONFINITE_INPUT",
     "FAULT_NONFINITE_OUTPUT",
     "FORCE_CLAMPED",

@@ -1,129 +1,367 @@
-// The servo cycle allocates nothing: a counting global allocator over 1e5 cycles.
+// The servo cycle allocates nothing and throws nothing. A counting allocator sees every
+// heap call of the process: the C allocator (malloc, calloc, realloc, free and the aligned
+// forms, interposed in this executable and forwarded to glibc's) and operator new / delete
+// (routed through that malloc), so an allocation through Eigen or a C library counts too.
+// The counter is defined here and declared in heap_counter.hpp for the executable's other
+// test files.
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <new>
+#include <type_traits>
+#include <utility>
+#include <vector>
 
-#include "test_support.hpp"
+// the C allocator is interposed on glibc, unless a sanitizer owns it
+#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__)
+#define VM_INTERPOSE_MALLOC 1
+#include <malloc.h>
+#endif
+
+#include "allocating_probe.hpp"
+#include "cycle_scenes.hpp"
+#include "heap_counter.hpp"
 #include "virtmech.h"
 
 namespace {
-std::atomic<long> g_allocations{0};
+
 std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};  // every block handed out (new goes through malloc)
+std::atomic<long> g_frees{0};        // every non-null block given back
+std::atomic<long> g_news{0};         // operator new calls among the allocations
+std::atomic<long> g_deletes{0};      // operator delete calls (non-null) among the frees
+thread_local bool t_in_hook = false;  // recursion guard of the C allocator hooks
+
+void count(std::atomic<long>& counter) noexcept {
+  if (g_counting.load(std::memory_order_relaxed)) counter.fetch_add(1, std::memory_order_relaxed);
+}
+
+// Marks a hook as entered; a call made from inside a hook (the C library calling back into
+// malloc) is forwarded without counting.
+class HookScope {
+ public:
+  HookScope() noexcept : nested_(t_in_hook) { t_in_hook = true; }
+  ~HookScope() { t_in_hook = nested_; }
+  HookScope(const HookScope&) = delete;
+  HookScope& operator=(const HookScope&) = delete;
+  void count(std::atomic<long>& counter) const noexcept {
+    if (!nested_) ::count(counter);
+  }
+
+ private:
+  bool nested_;
+};
+
 }  // namespace
 
+#if defined(VM_INTERPOSE_MALLOC)
+// glibc's own allocator entry points: the interposed symbols below forward to them (the
+// replacement glibc documents in "Replacing malloc").
+extern "C" {
+void* __libc_malloc(std::size_t size);
+void* __libc_calloc(std::size_t n, std::size_t size);
+void* __libc_realloc(void* p, std::size_t size);
+void __libc_free(void* p);
+void* __libc_memalign(std::size_t alignment, std::size_t size);
+void* __libc_valloc(std::size_t size);
+void* __libc_pvalloc(std::size_t size);
+
+void* malloc(std::size_t size) noexcept {
+  HookScope h;
+  h.count(g_allocations);
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t n, std::size_t size) noexcept {
+  HookScope h;
+  h.count(g_allocations);
+  return __libc_calloc(n, size);
+}
+// one allocation, plus one free when it gives back an existing block
+void* realloc(void* p, std::size_t size) noexcept {
+  HookScope h;
+  h.count(g_allocations);
+  if (p) h.count(g_frees);
+  return __libc_realloc(p, size);
+}
+void free(void* p) noexcept {
+  HookScope h;
+  if (p) h.count(g_frees);
+  __libc_free(p);
+}
+void* memalign(std::size_t alignment, std::size_t size) noexcept {
+  HookScope h;
+  h.count(g_allocations);
+  return __libc_memalign(alignment, size);
+}
+void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
+  HookScope h;
+  h.count(g_allocations);
+  return __libc_memalign(alignment, size);
+}
+int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
+  HookScope h;
+  h.count(g_allocations);
+  if (alignment % sizeof(void*) != 0 || (alignment & (alignment - 1)) != 0) return EINVAL;
+  void* p = __libc_memalign(alignment, size);
+  if (!p) return ENOMEM;
+  *out = p;
+  return 0;
+}
+void* valloc(std::size_t size) noexcept {
+  HookScope h;
+  h.count(g_allocations);
+  return __libc_valloc(size);
+}
+void* pvalloc(std::size_t size) noexcept {
+  HookScope h;
+  h.count(g_allocations);
+  return __libc_pvalloc(size);
+}
+}  // extern "C"
+constexpr bool kSeesMalloc = true;
+#else
+constexpr bool kSeesMalloc = false;  // only operator new / delete are counted
+#endif
+constexpr const char* kNotInterposed = "malloc is interposed on glibc without sanitizers only";
+
+// heap_counter.hpp
+bool vmtest::heap_counter_sees_malloc() noexcept { return kSeesMalloc; }
+
+void vmtest::start_heap_count() noexcept {
+  g_allocations = 0;
+  g_frees = 0;
+  g_news = 0;
+  g_deletes = 0;
+  g_counting = true;
+}
+
+vmtest::HeapCount vmtest::stop_heap_count() noexcept {
+  g_counting = false;
+  return {g_allocations.load(), g_frees.load(), g_news.load(), g_deletes.load()};
+}
+
 void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
+  count(g_news);
   if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
 void* operator new[](std::size_t size) { return operator new(size); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void* operator new(std::size_t size, std::align_val_t alignment) {
+  count(g_news);
+  const auto a = static_cast<std::size_t>(alignment);
+  void* p = nullptr;
+  if (posix_memalign(&p, a < sizeof(void*) ? sizeof(void*) : a, size == 0 ? 1 : size) == 0) {
+    return p;
+  }
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t size, std::align_val_t alignment) {
+  return operator new(size, alignment);
+}
+void operator delete(void* p) noexcept {
+  if (p) count(g_deletes);
+  std::free(p);
+}
+void operator delete[](void* p) noexcept { operator delete(p); }
+void operator delete(void* p, std::size_t) noexcept { operator delete(p); }
+void operator delete[](void* p, std::size_t) noexcept { operator delete(p); }
+void operator delete(void* p, std::align_val_t) noexcept { operator delete(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { operator delete(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { operator delete(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { operator delete(p); }
 
 using namespace virtmech;
+using namespace vmtest;
 
 namespace {
 
 constexpr int kCycles = 100000;
 
-// a slow wandering of every joint, so placements and filters take varied paths
-void joint_state(int k, JointVector& q, JointVector& dq) {
-  const double t = k * 1e-3;
-  for (int i = 0; i < q.size(); ++i) {
-    q[i] = 0.3 + 0.4 * std::sin(0.7 * t + i);
-    dq[i] = 0.28 * std::cos(0.7 * t + i);
-  }
+// The heap calls of `cycles` servo cycles of c from its first (see run_cycles).
+HeapCount count_cycles(Controller& c, int cycles, CycleOutput& out) {
+  JointVector q(c.device().dof()), dq(c.device().dof());
+  start_heap_count();
+  run_cycles(c, cycles, q, dq, out);
+  return stop_heap_count();
 }
 
-long count_cycles(Controller& c) {
-  JointVector q(c.device().dof()), dq(c.device().dof());
-  CycleOutput out;
-  joint_state(0, q, dq);
-  c.step(q.data(), dq.data(), out);  // warm up outside the count
-  g_allocations = 0;
-  g_counting = true;
-  for (int k = 0; k < kCycles; ++k) {
-    joint_state(k, q, dq);
-    c.step(q.data(), dq.data(), out);
-  }
-  g_counting = false;
-  return g_allocations.load();
+std::shared_ptr<Probe> table_probe() {
+  return std::make_shared<Probe>(Eigen::Vector3d(0, -0.02, 0), Eigen::Vector3d::UnitY(), 0.1,
+                                 Eigen::Vector3d::Zero());
 }
 
 }  // namespace
 
-TEST(Allocation, CountingAllocatorSeesAllocations) {
-  // the counter works: a vector allocates
-  g_allocations = 0;
-  g_counting = true;
-  std::vector<double>* v = new std::vector<double>(100);
-  g_counting = false;
-  delete v;
-  EXPECT_GE(g_allocations.load(), 2);
+// --- the counter sees every kind of heap call ---------------------------------------
+
+TEST(Allocation, CounterSeesMallocAndFree) {
+  if (!kSeesMalloc) GTEST_SKIP() << kNotInterposed;
+  void* p = nullptr;
+  const HeapCount a = heap_count_of([&] { g_heap_sink = p = std::malloc(64); });
+  const HeapCount f = heap_count_of([&] { std::free(p); });
+  EXPECT_EQ(a.allocations, 1);
+  EXPECT_EQ(a.frees, 0);
+  EXPECT_EQ(a.news, 0);
+  EXPECT_EQ(f.allocations, 0);
+  EXPECT_EQ(f.frees, 1);
 }
 
-TEST(Allocation, OmniProbeCycleAllocatesNothing) {
-  Controller c(std::make_shared<PhantomOmni>(),
-               std::make_shared<Probe>(Eigen::Vector3d(0, -0.02, 0), Eigen::Vector3d::UnitY(), 0.1,
-                                       Eigen::Vector3d::Zero()));
-  EXPECT_EQ(count_cycles(c), 0);
+TEST(Allocation, CounterSeesCalloc) {
+  if (!kSeesMalloc) GTEST_SKIP() << kNotInterposed;
+  void* p = nullptr;
+  const HeapCount a = heap_count_of([&] { g_heap_sink = p = std::calloc(8, sizeof(double)); });
+  std::free(p);
+  EXPECT_EQ(a.allocations, 1);
 }
 
-TEST(Allocation, OmniPlanarArmCycleAllocatesNothing) {
-  Controller c(std::make_shared<PhantomOmni>(),
-               std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0, -0.05), Eigen::Vector3d::UnitZ(),
-                                           0.05, Eigen::Vector3d::UnitX()));
-  EXPECT_EQ(count_cycles(c), 0);
+TEST(Allocation, CounterSeesRealloc) {
+  if (!kSeesMalloc) GTEST_SKIP() << kNotInterposed;
+  void* p = std::malloc(16);
+  const HeapCount a = heap_count_of([&] { g_heap_sink = p = std::realloc(p, 1 << 16); });
+  std::free(p);
+  EXPECT_EQ(a.allocations, 1);
+  EXPECT_EQ(a.frees, 1);  // the old block
 }
 
-TEST(Allocation, FullyActuatedSerialCycleAllocatesNothing) {
-  auto arm = vmtest::six_dof_arm();
-  std::vector<Joint> j(5);
-  for (int i = 0; i < 5; ++i) {
-    j[i].type = i < 2 ? JointType::kPrismatic : JointType::kRevolute;
-    j[i].axis = Eigen::Vector3d::Unit(i % 3);
+TEST(Allocation, CounterSeesAlignedAllocations) {
+#if !defined(VM_INTERPOSE_MALLOC)
+  GTEST_SKIP() << kNotInterposed;
+#else
+  void* p[4] = {nullptr, nullptr, nullptr, nullptr};
+  const HeapCount a = heap_count_of([&] {
+    g_heap_sink = p[0] = aligned_alloc(64, 256);
+    ASSERT_EQ(posix_memalign(&p[1], 64, 256), 0);
+    g_heap_sink = p[1];
+    g_heap_sink = p[2] = memalign(64, 256);
+    g_heap_sink = p[3] = valloc(256);
+  });
+  const HeapCount f = heap_count_of([&] {
+    for (void* q : p) std::free(q);
+  });
+  EXPECT_EQ(a.allocations, 4);
+  EXPECT_EQ(f.frees, 4);
+#endif
+}
+
+TEST(Allocation, CounterSeesEigenHeapVector) {
+  if (!kSeesMalloc) GTEST_SKIP() << kNotInterposed;
+  const HeapCount a = heap_count_of([] {
+    Eigen::VectorXd v(100);
+    g_heap_sink = v.data();
+  });
+  EXPECT_GE(a.allocations, 1);
+  EXPECT_GE(a.frees, 1);
+}
+
+TEST(Allocation, CounterSeesNewVector) {
+  // a vector object and its buffer: two news, each a malloc too
+  const HeapCount a = heap_count_of([] {
+    std::vector<double>* v = new std::vector<double>(100);
+    g_heap_sink = v;
+    delete v;
+  });
+  EXPECT_GE(a.news, 2);
+  EXPECT_GE(a.deletes, 2);
+  if (kSeesMalloc) {
+    EXPECT_GE(a.allocations, 2);
+    EXPECT_GE(a.frees, 2);
   }
-  Pose handle = Pose::Identity();
-  handle.translation() = Eigen::Vector3d(0.3, 0, 0.2);
-  Controller c(arm, std::make_shared<SerialChain>(j, handle, Pose::Identity(), 0.1));
-  EXPECT_EQ(count_cycles(c), 0);
 }
 
-TEST(Allocation, CApiStepAllocatesNothing) {
-  for (vm_mechanism_type type : {VM_MECHANISM_PROBE, VM_MECHANISM_PLANAR_ARM}) {
-    vm_device_desc dev;
-    vm_device_desc_init(&dev, VM_DEVICE_PHANTOM_OMNI);
-    vm_mechanism_desc mech;
-    vm_mechanism_desc_init(&mech, type);
-    mech.point[1] = -0.02;
-    vm_controller* c = nullptr;
-    char err[256];
-    ASSERT_EQ(vm_controller_create(&dev, &mech, nullptr, &c, err, sizeof err), VM_OK) << err;
-    double q[6], dq[6], tau[6];
-    JointVector qv(6), dqv(6);
-    vm_diagnostics d;
-    g_allocations = 0;
-    g_counting = true;
-    for (int k = 0; k < kCycles; ++k) {
-      joint_state(k, qv, dqv);
-      for (int i = 0; i < 6; ++i) {
-        q[i] = qv[i];
-        dq[i] = dqv[i];
-      }
-      vm_controller_step(c, q, dq, k * 1e-3, tau);
-      vm_controller_diagnostics(c, &d);
-    }
-    g_counting = false;
-    EXPECT_EQ(g_allocations.load(), 0);
-    EXPECT_EQ(tau[3], 0.0);
-    vm_controller_destroy(c);
+// --- the counter fails when the cycle allocates (negative tests) --------------------
+
+TEST(Allocation, CounterSeesMallocInTheCycle) {
+  if (!kSeesMalloc) GTEST_SKIP() << kNotInterposed;
+  Controller c(std::make_shared<PhantomOmni>(),
+               std::make_shared<AllocatingProbe>(table_probe(), HeapUse::kMalloc));
+  CycleOutput out;
+  const HeapCount n = count_cycles(c, 100, out);
+  EXPECT_GT(n.allocations, 0);
+  EXPECT_GT(n.frees, 0);
+  EXPECT_EQ(n.news, 0);  // a counter of operator new alone would have passed this cycle
+}
+
+TEST(Allocation, CounterSeesEigenTemporaryInTheCycle) {
+  if (!kSeesMalloc) GTEST_SKIP() << kNotInterposed;
+  Controller c(std::make_shared<PhantomOmni>(),
+               std::make_shared<AllocatingProbe>(table_probe(), HeapUse::kEigenTemporary));
+  CycleOutput out;
+  const HeapCount n = count_cycles(c, 100, out);
+  EXPECT_GT(n.allocations, 0);
+  EXPECT_GT(n.frees, 0);
+}
+
+// --- the cycle allocates and frees nothing ------------------------------------------
+
+class CycleAllocation : public testing::TestWithParam<std::string> {};
+
+TEST_P(CycleAllocation, AllocatesAndFreesNothing) {
+  const Scene s = make_scene(GetParam());
+  Controller c(s.device, s.mechanism, cycle_settings());
+  CycleOutput out;
+  const HeapCount n = count_cycles(c, kCycles, out);
+  EXPECT_EQ(n.allocations, 0);
+  EXPECT_EQ(n.frees, 0);
+  EXPECT_EQ(n.news, 0);
+  EXPECT_EQ(out.status & status::kFaultMask, 0u);  // the run ended in ordinary cycles
+  EXPECT_TRUE(out.torque.allFinite());
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, CycleAllocation, testing::ValuesIn(scene_names()),
+                         [](const testing::TestParamInfo<std::string>& info) {
+                           return info.param;
+                         });
+
+TEST(Allocation, CApiStepAndDiagnosticsAllocateNothing) {
+  for (vm_mechanism_type type : kCApiMechanisms) {
+    CApiLoop loop(type);
+    start_heap_count();
+    loop.run(kCycles);
+    const HeapCount n = stop_heap_count();
+    EXPECT_EQ(n.allocations, 0) << "mechanism type " << type;
+    EXPECT_EQ(n.frees, 0) << "mechanism type " << type;
+    EXPECT_EQ(loop.torque()[3], 0.0);
+    EXPECT_EQ(loop.diagnostics().status & VM_STATUS_FAULT_MASK, 0u);
   }
 }
+
+// --- the cycle's calls cannot throw (checked when this file compiles) ---------------
+
+TEST(Realtime, CycleCallsAreNoexcept) {
+  // A virtual declared noexcept binds every override: one that could throw fails to
+  // compile, so checking the interfaces covers every device and mechanism.
+  using Ref = Eigen::Ref<const Eigen::VectorXd>;  // bound by the caller, before the call
+  Controller* c = nullptr;
+  const Mechanism* m = nullptr;
+  const Device* d = nullptr;
+  const KinematicChain* k = nullptr;
+  const double* x = nullptr;
+  CycleOutput* out = nullptr;
+  Pose* T = nullptr;
+  Jacobian* J = nullptr;
+  static_assert(noexcept(c->step(x, x, *out)), "Controller::step(pointers) may throw");
+  static_assert(noexcept(c->step(x, x, *out, 0.0)), "Controller::step(pointers, t) may throw");
+  static_assert(noexcept(c->step(std::declval<const Ref&>(), std::declval<const Ref&>(), *out)),
+                "Controller::step(Ref) may throw");
+  static_assert(noexcept(c->step(std::declval<const Ref&>(), std::declval<const Ref&>(), *out,
+                                 0.0)),
+                "Controller::step(Ref, t) may throw");
+  static_assert(noexcept(c->reset()), "Controller::reset may throw");
+  static_assert(noexcept(m->forward_jacobian(x, *T, *J)), "Mechanism::forward_jacobian may throw");
+  static_assert(noexcept(m->forward(x, *T)), "Mechanism::forward may throw");
+  static_assert(noexcept(d->forward_jacobian(x, *T, *J)), "Device::forward_jacobian may throw");
+  static_assert(noexcept(d->forward(x, *T)), "Device::forward may throw");
+  static_assert(noexcept(k->forward_jacobian(x, *T, *J)),
+                "KinematicChain::forward_jacobian may throw");
+  static_assert(noexcept(k->forward(x, *T)), "KinematicChain::forward may throw");
+  static_assert(noexcept(k->joint(0)), "KinematicChain::joint may throw");
+  SUCCEED();
+}
+
+// --- the C API reports a bad description and matches the C++ cycle -----------------
 
 TEST(CApi, CreateReportsTheBadField) {
   vm_device_desc dev;
@@ -162,7 +400,7 @@ TEST(CApi, DiagnosticsMatchTheCppCycle) {
   double tau[6];
   for (int k = 0; k < 200; ++k) {
     joint_state(k * 10, q, dq);
-    const std::uint32_t s = vm_controller_step(c, q.data(), dq.data(), NAN, tau);
+    const std::uint32_t s = vm_controller_step(c, q.data(), dq.data(), 6, NAN, tau);
     ref.step(q.data(), dq.data(), out);
     vm_controller_diagnostics(c, &d);
     ASSERT_EQ(s, out.status);

@@ -59,6 +59,12 @@ DEVICE = Field(
     },
 )
 
+UNILATERAL = Field(
+    "bool",
+    default=False,
+    doc="the tip may lift off toward +normal: the surface pushes but never pulls",
+)
+
 MECHANISM = Field(
     "table",
     required=True,
@@ -75,18 +81,21 @@ MECHANISM = Field(
             "normal": vec(3, [0.0, 0.0, 1.0]),
             "length": num(0.1, min=0, min_exclusive=True, max=10),
             "tangent": opt_vec(3),
+            "unilateral": UNILATERAL,
         },
         "Probe": {
             "plane_point": vec(3, required=True, doc="3 numbers [m]"),
             "plane_normal": vec(3, required=True, doc="3 numbers"),
             "length": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
             "tangent": opt_vec(3),
+            "unilateral": UNILATERAL,
         },
         "LineGuide": {
             "point": vec(3, required=True, doc="3 numbers [m]"),
             "direction": vec(3, required=True, doc="3 numbers"),
             "length": num(0.1, min=0, min_exclusive=True, max=10),
             "normal": opt_vec(3),
+            "unilateral": UNILATERAL,
         },
     },
 )

@@ -71,11 +71,21 @@ def make_mechanism(m: dict):
     if t == "PlanarArm":
         return vm.PlanarArm(m["pivot"], m["normal"], m["length"], m.get("zero_direction"))
     if t == "PointPivot":
-        return vm.PointPivot(m["point"], m["normal"], m["length"], m.get("tangent"))
+        return vm.PointPivot(
+            m["point"], m["normal"], m["length"], m.get("tangent"), unilateral=m["unilateral"]
+        )
     if t == "Probe":
-        return vm.Probe(m["plane_point"], m["plane_normal"], m["length"], m.get("tangent"))
+        return vm.Probe(
+            m["plane_point"],
+            m["plane_normal"],
+            m["length"],
+            m.get("tangent"),
+            unilateral=m["unilateral"],
+        )
     if t == "LineGuide":
-        return vm.LineGuide(m["point"], m["direction"], m["length"], m.get("normal"))
+        return vm.LineGuide(
+            m["point"], m["direction"], m["length"], m.get("normal"), unilateral=m["unilateral"]
+        )
     raise ValueError(f"mechanism.type: unknown {t!r}")
 
 

@@ -1,0 +1,127 @@
+#include "closed_form.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "virtmech/se3.hpp"
+
+namespace virtmech::detail {
+
+bool isotropic_blocks(const Vector6& w, double& w_p, double& w_r) noexcept {
+  if (!(w[0] == w[1] && w[1] == w[2] && w[3] == w[4] && w[4] == w[5])) return false;
+  w_p = w[0];
+  w_r = w[3];
+  return w_p >= 0.0 && w_r >= 0.0 && (w_p > 0.0 || w_r > 0.0);
+}
+
+namespace {
+
+// the position cost's derivatives in phi: g'(phi), g''(phi)
+void position_derivatives(const TiltCost& k, double phi, double& g1, double& g2) noexcept {
+  const double c = std::cos(phi), s = std::sin(phi);
+  if (k.one_sided && !(k.b * c > k.a)) {
+    g1 = g2 = 0.0;
+    return;
+  }
+  const double p2 = k.one_sided ? k.b * k.b : k.p2;
+  const double p1 = k.one_sided ? -2.0 * k.a * k.b : k.p1;
+  const double dc = 2.0 * p2 * c + p1;  // dg/dc
+  g1 = -dc * s;
+  g2 = 2.0 * p2 * s * s - dc * c;
+}
+
+// the angle in [0, pi] minimising the position cost, nearest phi_r among minimisers
+double position_minimiser(const TiltCost& k, double phi_r) noexcept {
+  if (k.one_sided) {
+    if (!(k.b * std::cos(phi_r) > k.a)) return phi_r;  // already at zero cost
+    return k.b > 0.0 ? std::acos(std::min(1.0, std::max(-1.0, k.a / k.b))) : phi_r;
+  }
+  if (k.p2 > 0.0) return std::acos(std::min(1.0, std::max(-1.0, -k.p1 / (2.0 * k.p2))));
+  if (k.p1 < 0.0) return 0.0;
+  if (k.p1 > 0.0) return M_PI;
+  return phi_r;
+}
+
+// minimiser of f(phi) = w_p g(phi) + w_r (phi - phi_r)^2 between phi0 (g's minimiser) and
+// phi_r, where f' runs from - to +: Newton steps kept inside a shrinking bracket
+double solve_tilt(const TiltCost& k, double w_p, double w_r, double phi0, double phi_r) noexcept {
+  if (phi0 == phi_r || w_p == 0.0) return phi_r;
+  if (w_r == 0.0) return phi0;
+  double lo = std::min(phi0, phi_r), hi = std::max(phi0, phi_r);
+  // start at the end f favours: the rotation term's when it dominates
+  double x = w_r * (hi - lo) * (hi - lo) > w_p * 1.0 ? phi_r : phi0;
+  x = std::min(std::max(x, lo), hi);
+  for (int it = 0; it < 100; ++it) {
+    double g1, g2;
+    position_derivatives(k, x, g1, g2);
+    const double f1 = w_p * g1 + 2.0 * w_r * (x - phi_r);
+    const double f2 = w_p * g2 + 2.0 * w_r;
+    if (f1 < 0.0) lo = x;
+    else if (f1 > 0.0) hi = x;
+    else return x;
+    double next = f2 > 0.0 ? x - f1 / f2 : 0.5 * (lo + hi);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // also NaN
+    if (std::abs(next - x) <= 1e-16 * (1.0 + std::abs(x)) || hi - lo <= 4e-16 * (1.0 + hi)) {
+      return next;
+    }
+    x = next;
+  }
+  return x;
+}
+
+}  // namespace
+
+void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
+                     const TiltCost& cost, double w_p, double w_r, const Eigen::Vector3d& hint,
+                     Eigen::Matrix3d& R) noexcept {
+  const Eigen::Vector3d u_r = -R_R.col(2);
+  const double phi_r = std::atan2(u_r.cross(axis).norm(), u_r.dot(axis));
+  const double phi = solve_tilt(cost, w_p, w_r, position_minimiser(cost, phi_r), phi_r);
+  if (phi == phi_r) {
+    R = R_R;
+    return;
+  }
+  // turn u_r toward the axis by phi_r - phi, about u_r x axis
+  Eigen::Vector3d k = u_r.cross(axis);
+  double kn = k.norm();
+  if (kn < 1e-12) {  // u_r along the axis: tilt toward the hint, about u_r x hint
+    Eigen::Vector3d h = hint - hint.dot(axis) * axis;
+    if (h.norm() < 1e-12) h = any_orthogonal(axis);
+    k = u_r.cross(h).normalized();
+    R = Eigen::AngleAxisd(std::abs(phi - phi_r), k).toRotationMatrix() * R_R;
+    return;
+  }
+  k /= kn;
+  R = Eigen::AngleAxisd(phi_r - phi, k).toRotationMatrix() * R_R;
+}
+
+Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept {
+  // M = Rx(a) Ry(b) Rz(c): M(0,2) = sin b, M(1,2) = -sin a cos b, M(2,2) = cos a cos b,
+  // M(0,1) = -cos b sin c, M(0,0) = cos b cos c
+  const double sb = std::min(1.0, std::max(-1.0, M(0, 2)));
+  const double cb = std::sqrt(std::max(0.0, M(1, 2) * M(1, 2) + M(2, 2) * M(2, 2)));
+  Eigen::Vector3d e1, e2;
+  if (cb > 1e-9) {
+    e1 << std::atan2(-M(1, 2), M(2, 2)), std::atan2(sb, cb), std::atan2(-M(0, 1), M(0, 0));
+    e2 << e1[0] + M_PI, M_PI - e1[1], e1[2] + M_PI;  // the other branch (cos b < 0)
+  } else {
+    // gimbal lock (b = +-pi/2): only a + c (b > 0) or a - c (b < 0) is defined; keep a
+    const double b = sb > 0.0 ? M_PI / 2 : -M_PI / 2;
+    const double a = start[0];
+    // Rx(a) Ry(+-pi/2) Rz(c): M(1,0) = sin(a +- c)... solved for c from M(1,0), M(1,1)
+    const double sum = std::atan2(M(1, 0), M(1, 1));  // a + c (b > 0) or c - a ... see below
+    const double c = sb > 0.0 ? sum - a : sum + a;
+    e1 << a, b, c;
+    e2 = e1;
+  }
+  auto wrap_near = [](double x, double ref) {
+    return x + 2.0 * M_PI * std::round((ref - x) / (2.0 * M_PI));
+  };
+  for (int i = 0; i < 3; ++i) {
+    e1[i] = wrap_near(e1[i], start[i]);
+    e2[i] = wrap_near(e2[i], start[i]);
+  }
+  return (e1 - start).squaredNorm() <= (e2 - start).squaredNorm() ? e1 : e2;
+}
+
+}  // namespace virtmech::detail

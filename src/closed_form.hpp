@@ -1,0 +1,44 @@
+// Closed-form placements of probe-like mechanisms (a stylus of length L whose tip is held to
+// a plane or a point, the three wrist joints meeting at the tip). Internal to the core.
+//
+// With weights isotropic within the position block (w_p) and within the rotation block
+// (w_r), the weighted optimum of e^T W e reduces to one angle: for a stylus whose tip-to-
+// handle direction u makes the angle phi with a reference axis, the nearest orientation to
+// the handle's is the handle's own turned about (u_R x axis) by phi_R - phi (no rotation of
+// a frame is shorter than the angle it turns one of its vectors through), and the best tip
+// for that orientation follows in closed form. What is left is
+//   f(phi) = w_p * position(phi) + w_r * (phi - phi_R)^2,
+// minimised between the position term's minimiser and phi_R, where f' changes sign from -
+// to +: one bracketed Newton solve (docs/theory.md, section 4).
+#pragma once
+
+#include "virtmech/types.hpp"
+
+namespace virtmech::detail {
+
+/// Position and rotation weights when W is isotropic within each block (w[0] = w[1] =
+/// w[2], w[3] = w[4] = w[5]); false otherwise.
+bool isotropic_blocks(const Vector6& w, double& w_p, double& w_r) noexcept;
+
+/// The position cost of a stylus as a function of c = cos(phi), phi the angle between its
+/// tip-to-handle direction and a reference axis: p2 c^2 + p1 c (+ a constant). `one_sided`:
+/// zero where b c <= a (a probe's tip in front of its plane), else (a - b c)^2.
+struct TiltCost {
+  double p2 = 0.0, p1 = 0.0;
+  bool one_sided = false;
+  double a = 0.0, b = 0.0;
+};
+
+/// The handle orientation R minimising w_p * cost(cos angle(u, axis)) + w_r * angle(R, R_R)^2,
+/// u = -R z the stylus's tip-to-handle direction; R_R is the handle's orientation. Where
+/// u_R is along the axis, the stylus tilts toward `hint` (any length; the axis's
+/// orthogonal complement's first direction if that is degenerate too).
+void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
+                     const TiltCost& cost, double w_p, double w_r, const Eigen::Vector3d& hint,
+                     Eigen::Matrix3d& R) noexcept;
+
+/// Joint values of three revolute joints about x, y, z (in that order) giving the rotation
+/// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it).
+Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept;
+
+}  // namespace virtmech::detail

@@ -1,0 +1,408 @@
+// WeightedProjector: the filters (eqs. 5, 9) and the weighted fit from an orthogonal
+// factorisation of sqrt(W) J. Properties on random and near-singular cases, edge cases, and
+// no heap use. Norms are spectral (2-norms).
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "heap_counter.hpp"
+#include "virtmech/filters.hpp"
+
+using namespace virtmech;
+
+namespace {
+
+constexpr double kTol = 1e-12;  // rounding, relative (the factorisation never squares kappa)
+
+const void* volatile g_sink = nullptr;  // keeps the control allocation from being elided
+
+using Dyn = Eigen::MatrixXd;
+
+double norm2(const Dyn& M) {
+  if (M.size() == 0) return 0.0;
+  return Eigen::JacobiSVD<Dyn>(M).singularValues()(0);
+}
+
+// Rank with singular values below kPinvTolerance of the largest counted as 0; -1 when one lies
+// within a factor 1e3 of that cut (pivots and singular values may then decide differently).
+int svd_rank(const Dyn& M) {
+  if (M.size() == 0) return 0;
+  const Eigen::VectorXd s = Eigen::JacobiSVD<Dyn>(M).singularValues();
+  if (!(s(0) > 0.0)) return 0;
+  int r = 0;
+  for (Eigen::Index i = 0; i < s.size(); ++i) {
+    const double rel = s(i) / s(0);
+    if (rel > kPinvTolerance * 1e-3 && rel < kPinvTolerance * 1e3) return -1;
+    r += rel > kPinvTolerance;
+  }
+  return r;
+}
+
+Matrix6 range_matrix(const WeightedProjector& p) {
+  Matrix6 P;
+  for (int k = 0; k < 6; ++k) P.col(k) = p.range(Vector6::Unit(k));
+  return P;
+}
+
+// W J (J^T W J)^+ J^T = S (A^+)^T J^T, A = S J, by an SVD of A with rank r: an independent
+// algorithm (the test may allocate).
+Dyn svd_reference(const Dyn& S, const Dyn& J, int r) {
+  if (r == 0) return Dyn::Zero(6, 6);
+  const Dyn A = S * J;
+  Eigen::JacobiSVD<Dyn> svd(A, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Dyn U = svd.matrixU().leftCols(r), V = svd.matrixV().leftCols(r);
+  const Eigen::VectorXd s = svd.singularValues().head(r);
+  return S * U * s.cwiseInverse().asDiagonal() * V.transpose() * J.transpose();
+}
+
+struct Case {
+  Jacobian J;
+  Vector6 w;
+};
+
+// Like the Python strategy: entries 0 or +-1e-3 .. 10 (log-uniform), 0 .. 8 columns, sometimes
+// a repeated, scaled-copy or zero column, or planar rows zeroed; weights 0 or 0.01 .. 10.
+Case random_case(std::mt19937& rng, int trial) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const int m = trial % (kMaxDof + 1);
+  Case c{Jacobian(6, m), Vector6()};
+  for (int j = 0; j < m; ++j) {
+    for (int i = 0; i < 6; ++i) {
+      const double x = u(rng);
+      c.J(i, j) = x < 0.15 ? 0.0 : (x < 0.575 ? -1.0 : 1.0) * std::pow(10.0, -3.0 + 4.0 * u(rng));
+    }
+  }
+  const int kind = (trial / (kMaxDof + 1)) % 5;
+  if (kind == 1 && m > 1) c.J.col(m - 1) = c.J.col(0);
+  if (kind == 2 && m > 1) c.J.col(m - 1) = c.J.col(0) * (4.0 * u(rng) - 2.0);
+  if (kind == 3 && m > 0) c.J.col(trial % m).setZero();
+  if (kind == 4) c.J.row(2).setZero(), c.J.row(3).setZero(), c.J.row(4).setZero();
+  for (int i = 0; i < 6; ++i) c.w[i] = u(rng) < 0.3 ? 0.0 : std::pow(10.0, -2.0 + 3.0 * u(rng));
+  return c;
+}
+
+Dyn random_orthogonal(std::mt19937& rng, int n) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  Dyn G(n, n);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) G(i, j) = g(rng);
+  return Eigen::HouseholderQR<Dyn>(G).householderQ() * Dyn::Identity(n, n);
+}
+
+// The properties of P(W), N(W) for one case (W = S^2, S symmetric); returns the rank of
+// sqrt(W) J by SVD (-1: ambiguous).
+int check_properties(const WeightedProjector& p, const Jacobian& J, const Matrix6& W,
+                     const Matrix6& S, const std::string& what) {
+  const Matrix6 P = range_matrix(p);
+  const Matrix6 N = Matrix6::Identity() - P;
+  EXPECT_TRUE(P.allFinite()) << what;
+  const double nP = norm2(P);
+  EXPECT_LE(norm2(P * P - P), kTol * std::max(1.0, nP) * std::max(1.0, nP)) << what;
+  const Dyn WJ = W * J;
+  EXPECT_LE(norm2(N * WJ), kTol * norm2(WJ)) << what;
+  for (int i = 0; i < 6; ++i) {
+    if (W.row(i).isZero(0.0)) EXPECT_EQ(P.row(i).cwiseAbs().maxCoeff(), 0.0) << what << i;
+  }
+  const Vector6 x = Vector6::LinSpaced(6, -1.0, 1.5);
+  EXPECT_EQ(p.null(x), x - p.range(x)) << what;
+  const int r = svd_rank(S * J);
+  if (r >= 0) {
+    EXPECT_EQ(p.rank(), r) << what;
+    if (r == svd_rank(J) && J.cols() > 0) {
+      // the product J^T N itself rounds to eps |J| |N| (|N| > 1 for an oblique N)
+      EXPECT_LE(norm2(J.transpose() * N), kTol * norm2(J) * std::max(1.0, norm2(N))) << what;
+    }
+    const Dyn R = svd_reference(S, J, r);
+    EXPECT_LE(norm2(P - R), 1e-8 * std::max(1.0, norm2(R))) << what;
+  }
+  return r;
+}
+
+}  // namespace
+
+TEST(FilterProjector, PropertiesOnRandomCases) {
+  std::mt19937 rng(2024);
+  int ambiguous = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Case c = random_case(rng, trial);
+    WeightedProjector p;
+    p.compute(c.J, c.w);
+    const Matrix6 W = c.w.asDiagonal();
+    const Matrix6 S = c.w.cwiseSqrt().asDiagonal();
+    ambiguous += check_properties(p, c.J, W, S, "trial " + std::to_string(trial)) < 0;
+    // the free functions are this code
+    EXPECT_EQ(range_filter(c.J, c.w), range_matrix(p));
+    EXPECT_EQ(null_filter(c.J, c.w), Matrix6::Identity() - range_matrix(p));
+    EXPECT_EQ(range_filter(c.J, W), range_matrix(p));
+  }
+  EXPECT_LT(ambiguous, 20);
+}
+
+TEST(FilterProjector, NearSingularStaysFullRankAndAccurate) {
+  // sqrt(W) J with singular values 1 .. 1e-6 (a Probe 1e-5 rad from its singular pose), on
+  // weighted rows only or with zero-weighted rows that J still moves
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 200; ++trial) {
+    const int m = 1 + trial % 5;
+    const int k = std::min(m, 3);  // rank of the weighted rows' block
+    Vector6 w = Vector6::Zero();
+    w.head(3) << 1.0, 2.0, 0.5;
+    if (trial % 2) w.tail(3).setConstant(0.01);
+    Dyn Jd = Dyn::Zero(6, m);
+    Eigen::VectorXd s = Eigen::VectorXd::LinSpaced(k, 0.0, -6.0);
+    for (int i = 0; i < k; ++i) s(i) = std::pow(10.0, s(i));
+    Jd.topRows(3) = random_orthogonal(rng, 3).leftCols(k) * s.asDiagonal() *
+                    random_orthogonal(rng, m).topRows(k);
+    std::normal_distribution<double> g(0.0, 1.0);
+    for (int j = 0; j < m; ++j)
+      for (int i = 3; i < 6; ++i) Jd(i, j) = g(rng);
+    const Jacobian J = Jd;
+    WeightedProjector p;
+    p.compute(J, w);
+    const int r = check_properties(p, J, Matrix6(w.asDiagonal()),
+                                   Matrix6(w.cwiseSqrt().asDiagonal()),
+                                   "trial " + std::to_string(trial));
+    EXPECT_EQ(r, trial % 2 ? m : k) << trial;
+  }
+}
+
+TEST(FilterProjector, FitMatchesCompleteOrthogonalDecomposition) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int trial = 0; trial < 1000; ++trial) {
+    const Case c = random_case(rng, trial);
+    Vector6 v;
+    for (int i = 0; i < 6; ++i) v[i] = g(rng);
+    WeightedProjector p;
+    p.compute(c.J, c.w);
+    JointVector theta_dot;
+    p.fit(v, theta_dot);
+    ASSERT_EQ(theta_dot.size(), c.J.cols());
+    const Dyn S = c.w.cwiseSqrt().asDiagonal();
+    const Dyn A = S * Dyn(c.J);
+    if (A.cols() == 0) continue;
+    Eigen::CompleteOrthogonalDecomposition<Dyn> cod(A.rows(), A.cols());
+    cod.setThreshold(kPinvTolerance);
+    cod.compute(A);
+    const Eigen::VectorXd ref = cod.solve(S * v);
+    EXPECT_EQ(p.rank(), cod.rank()) << trial;
+    if (cod.rank() == 0) {
+      EXPECT_TRUE(theta_dot.isZero(0.0)) << trial;
+      continue;
+    }
+    // two backward-stable least-squares solutions differ by eps (kappa |x| + kappa^2 |res| /
+    // s_1), kappa = s_1 / s_r (the two pivot orders may differ)
+    const Eigen::VectorXd sv = Eigen::JacobiSVD<Dyn>(A).singularValues();
+    const double kappa = sv(0) / sv(cod.rank() - 1);
+    const double res = (A * ref - S * v).norm();
+    EXPECT_LE((theta_dot - ref).norm(), 1e-14 * (kappa * ref.norm() + kappa * kappa * res / sv(0)))
+        << trial;
+  }
+}
+
+TEST(FilterProjector, FitIsTheWeightedMinimumNormSolution) {
+  // J^T W (J theta_dot - v) = 0 and theta_dot in the row space of sqrt(W) J, with a full W
+  std::mt19937 rng(13);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int trial = 0; trial < 200; ++trial) {
+    const int m = 1 + trial % kMaxDof;
+    Jacobian J(6, m);
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < 6; ++i) J(i, j) = g(rng);
+    if (trial % 3 == 0 && m > 1) J.col(m - 1) = J.col(0);
+    const Dyn Q = random_orthogonal(rng, 6);
+    Vector6 lambda;
+    for (int i = 0; i < 6; ++i) lambda[i] = i < trial % 4 ? 0.0 : 0.1 + std::abs(g(rng));
+    const Matrix6 W = Q * lambda.asDiagonal() * Q.transpose();
+    const Matrix6 S = Q * lambda.cwiseSqrt().asDiagonal() * Q.transpose();
+    Vector6 v;
+    for (int i = 0; i < 6; ++i) v[i] = g(rng);
+    WeightedProjector p;
+    p.compute(J, W);
+    JointVector theta_dot;
+    p.fit(v, theta_dot);
+    const Dyn A = S * J;
+    const double nA = norm2(A);
+    const Dyn normal = A.transpose() * (A * theta_dot - S * v);  // the normal equations
+    EXPECT_LE(normal.norm(), 1e-12 * nA * nA * v.norm()) << trial;
+    const Dyn pinv = A.completeOrthogonalDecomposition().pseudoInverse();
+    EXPECT_LE((pinv * A * theta_dot - theta_dot).norm(), 1e-10 * std::max(1.0, theta_dot.norm()))
+        << trial;
+    check_properties(p, J, W, S, "full W trial " + std::to_string(trial));
+  }
+}
+
+TEST(FilterProjector, NoColumns) {
+  const Jacobian J(6, 0);
+  const Vector6 ones = Vector6::Ones();
+  WeightedProjector p;
+  p.compute(J, ones);
+  EXPECT_EQ(p.rank(), 0);
+  const Vector6 x = Vector6::LinSpaced(6, 1.0, 6.0);
+  EXPECT_EQ(p.range(x), Vector6::Zero());
+  EXPECT_EQ(p.null(x), x);
+  JointVector theta_dot(3);
+  p.fit(x, theta_dot);
+  EXPECT_EQ(theta_dot.size(), 0);
+  EXPECT_EQ(range_filter(J, ones), Matrix6::Zero());
+  EXPECT_EQ(null_filter(J, Matrix6(Matrix6::Identity())), Matrix6::Identity());
+}
+
+TEST(FilterProjector, ZeroWeightsOrZeroJacobian) {
+  Jacobian J(6, 4);
+  J.setRandom();
+  const Vector6 x = Vector6::LinSpaced(6, 1.0, 6.0);
+  for (const Jacobian& Jc : {J, Jacobian(Jacobian::Zero(6, 4))}) {
+    for (const Vector6& w : {Vector6(Vector6::Zero()), Vector6(Vector6::Ones())}) {
+      if (w.isOnes() && !Jc.isZero()) continue;
+      WeightedProjector p;
+      p.compute(Jc, w);
+      EXPECT_EQ(p.rank(), 0);
+      EXPECT_EQ(p.range(x), Vector6::Zero());
+      EXPECT_EQ(p.null(x), x);
+      JointVector theta_dot;
+      p.fit(x, theta_dot);
+      EXPECT_EQ(theta_dot, JointVector::Zero(4));
+      EXPECT_EQ(range_filter(Jc, w), Matrix6::Zero());
+      EXPECT_EQ(null_filter(Jc, Matrix6(w.asDiagonal())), Matrix6::Identity());
+    }
+  }
+}
+
+TEST(FilterProjector, NonFiniteInputsGiveNaN) {
+  Jacobian J = Jacobian::Identity(6, 3);
+  Vector6 w = Vector6::Ones();
+  const Vector6 x = Vector6::Ones();
+  JointVector theta_dot;
+  WeightedProjector p;
+  J(4, 1) = std::nan("");
+  p.compute(J, w);
+  EXPECT_TRUE(p.range(x).array().isNaN().all());
+  p.fit(x, theta_dot);
+  EXPECT_TRUE(theta_dot.array().isNaN().all());
+  J(4, 1) = 0.0;
+  w[2] = std::nan("");
+  p.compute(J, w);
+  EXPECT_TRUE(p.null(x).array().isNaN().all());
+  Matrix6 W = Matrix6::Identity();
+  W(0, 1) = W(1, 0) = kInf;
+  p.compute(J, W);
+  EXPECT_TRUE(p.range(x).array().isNaN().all());
+  p.compute(J, Vector6(Vector6::Ones()));  // and back
+  EXPECT_TRUE(p.range(x).allFinite());
+}
+
+TEST(FilterProjector, FullWeightMatrix) {
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> small(-3, 3);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int trial = 0; trial < 200; ++trial) {
+    const int m = 1 + trial % kMaxDof;
+    Jacobian J(6, m);
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < 6; ++i) J(i, j) = g(rng);
+    // a diagonal matrix is the vector path, bit for bit
+    Vector6 w;
+    for (int i = 0; i < 6; ++i) w[i] = i == trial % 6 ? 0.0 : 0.5 + std::abs(g(rng));
+    WeightedProjector pv, pm;
+    pv.compute(J, w);
+    pm.compute(J, Matrix6(w.asDiagonal()));
+    EXPECT_EQ(range_matrix(pv), range_matrix(pm));
+    // W = B B^T with small integer B (exact, rank 6 - trial % 4), some rows and columns 0
+    Dyn B(6, 6 - trial % 4);
+    for (Eigen::Index j = 0; j < B.cols(); ++j)
+      for (int i = 0; i < 6; ++i) B(i, j) = small(rng);
+    if (trial % 2) B.row(1).setZero(), B.row(4).setZero();
+    const Matrix6 W = B * B.transpose();
+    Eigen::SelfAdjointEigenSolver<Matrix6> eig(W);
+    Vector6 lambda = eig.eigenvalues();
+    for (int i = 0; i < 6; ++i) lambda[i] = lambda[i] > 1e-12 * lambda.maxCoeff() ? lambda[i] : 0.0;
+    const Matrix6 S =
+        eig.eigenvectors() * lambda.cwiseSqrt().asDiagonal() * eig.eigenvectors().transpose();
+    WeightedProjector p;
+    p.compute(J, W);
+    check_properties(p, J, W, S, "trial " + std::to_string(trial));
+    EXPECT_EQ(range_filter(J, W), range_matrix(p));
+  }
+}
+
+TEST(FilterProjector, ReuseLeavesNoState) {
+  std::mt19937 rng(19);
+  WeightedProjector reused;
+  const Vector6 x = Vector6::LinSpaced(6, -2.0, 3.0);
+  for (int trial = 0; trial < 300; ++trial) {
+    const Case c = random_case(rng, (trial * 7) % 45);
+    WeightedProjector fresh;
+    if (trial % 3 == 0) {
+      const Matrix6 W = Matrix6(c.w.asDiagonal()) + 0.1 * Matrix6::Ones();
+      reused.compute(c.J, W);
+      fresh.compute(c.J, W);
+    } else {
+      reused.compute(c.J, c.w);
+      fresh.compute(c.J, c.w);
+    }
+    EXPECT_EQ(reused.rank(), fresh.rank());
+    EXPECT_EQ(reused.range(x), fresh.range(x));
+    JointVector a, b;
+    reused.fit(x, a);
+    fresh.fit(x, b);
+    EXPECT_EQ(a, b);
+  }
+}
+
+TEST(FilterProjector, NeverAllocates) {
+  // Eigen allocates with std::malloc, which the executable's heap counter sees on glibc
+  if (!vmtest::heap_counter_sees_malloc()) GTEST_SKIP() << "malloc is counted on glibc only";
+  const vmtest::HeapCount control = vmtest::heap_count_of([] {
+    Eigen::MatrixXd M(7, 7);  // dynamic size: heap
+    g_sink = M.data();
+  });
+  ASSERT_GT(control.allocations, 0);
+
+  std::mt19937 rng(23);
+  std::vector<Case> cases;
+  for (int trial = 0; trial < 90; ++trial) cases.push_back(random_case(rng, trial));
+  const Vector6 x = Vector6::LinSpaced(6, -1.0, 1.0);
+  double sum = 0.0;
+  WeightedProjector p;
+  JointVector theta_dot;
+  const vmtest::HeapCount n = vmtest::heap_count_of([&] {
+    for (const Case& c : cases) {
+      p.compute(c.J, c.w);
+      sum += p.range(x).sum() + p.null(x).sum() + p.rank();
+      p.fit(x, theta_dot);
+      sum += theta_dot.sum();
+      const Matrix6 W = Matrix6(c.w.asDiagonal()) + 0.1 * Matrix6::Ones();  // full W
+      p.compute(c.J, W);
+      sum += p.range(x).sum();
+      p.fit(x, theta_dot);
+      sum += theta_dot.sum();
+      sum += range_filter(c.J, c.w).sum() + null_filter(c.J, W).sum();
+    }
+  });
+  EXPECT_EQ(n.allocations, 0);
+  EXPECT_EQ(n.frees, 0);
+  EXPECT_TRUE(std::isfinite(sum));
+}
+
+TEST(FilterProjector, SymmetricPinvStillWorks) {
+  std::mt19937 rng(29);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int n = 1; n <= kMaxDof; ++n) {
+    Dyn B(n, std::max(1, n - 2));
+    for (Eigen::Index j = 0; j < B.cols(); ++j)
+      for (int i = 0; i < n; ++i) B(i, j) = g(rng);
+    const JointMatrix A = B * B.transpose();
+    JointMatrix Ap;
+    symmetric_pinv(A, Ap);
+    const Dyn ref = Dyn(A).completeOrthogonalDecomposition().pseudoInverse();
+    EXPECT_LE((Dyn(Ap) - ref).norm(), 1e-8 * std::max(1.0, ref.norm())) << n;
+  }
+}
