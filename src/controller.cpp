@@ -268,8 +268,8 @@ void null_space_term(const ControllerModel& M, const Mechanism& mech, Controller
   for (int pass = 0; pass < 2; ++pass) {
     error_rate(M, p, M.w_e_effective, d.v_R, d.projector, out.error_dot);
     const Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);
-    d.projector.compute(p.J_free, M.w_a);
-    out.wrench_null = d.projector.null(F);
+    d.projector_a.compute(p.J_free, M.w_a);
+    out.wrench_null = d.projector_a.null(F);
     const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_null) : 0u;
     if (!pull) break;
     release(pull, p);
@@ -289,13 +289,14 @@ void range_space_term(const ControllerModel& M, const Mechanism& mech, Controlle
   for (int pass = 0; pass < 2; ++pass) {
     error_rate(M, p, M.w_e_star_effective, d.v_R, d.projector, out.error_star_dot);
     const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
-    d.projector.compute(d.nearest.J, M.w_a);
-    const int rank_nearest = d.projector.rank();
-    if (rank_nearest < std::min(M.w_a_support, mech.dof())) {
+    // P(W_A) at the nearest placement, every column: the null term's when none is locked
+    if (d.nearest.active) d.projector_a.compute(d.nearest.J, M.w_a);
+    const WeightedProjector* P = &d.projector_a;
+    if (P->rank() < std::min(M.w_a_support, mech.dof())) {
       d.projector.compute(p.J, M.w_a);
-      if (d.projector.rank() <= rank_nearest) d.projector.compute(d.nearest.J, M.w_a);
+      if (d.projector.rank() > P->rank()) P = &d.projector;
     }
-    out.wrench_range = d.projector.range(F);
+    out.wrench_range = P->range(F);
     const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_range) : 0u;
     if (!pull) break;
     release(pull, p);

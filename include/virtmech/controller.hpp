@@ -142,7 +142,8 @@ struct ControllerData {
   Pose handle_pose = Pose::Identity();
   Jacobian J_R;     //!< device Jacobian at q
   Vector6 v_R;      //!< handle twist J_R dq
-  WeightedProjector projector;  //!< the one P(W) / N(W) the stages share
+  WeightedProjector projector;    //!< P(W) / N(W) for the rates and the renderable part
+  WeightedProjector projector_a;  //!< P(W_A) / N(W_A) at the nearest placement
   bool first = true;            //!< next cycle starts placements afresh
   long ramp_count = 0;
   double last_t = std::numeric_limits<double>::quiet_NaN();
