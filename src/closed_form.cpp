@@ -42,31 +42,53 @@ double position_minimiser(const TiltCost& k, double phi_r) noexcept {
   return phi_r;
 }
 
-// minimiser of f(phi) = w_p g(phi) + w_r (phi - phi_r)^2 between phi0 (g's minimiser) and
-// phi_r, where f' runs from - to +: Newton steps kept inside a shrinking bracket
-double solve_tilt(const TiltCost& k, double w_p, double w_r, double phi0, double phi_r) noexcept {
-  if (phi0 == phi_r || w_p == 0.0) return phi_r;
-  if (w_r == 0.0) return phi0;
-  double lo = std::min(phi0, phi_r), hi = std::max(phi0, phi_r);
-  // start at the end f favours: the rotation term's when it dominates
-  double x = w_r * (hi - lo) * (hi - lo) > w_p * 1.0 ? phi_r : phi0;
-  x = std::min(std::max(x, lo), hi);
+// the root of f' in [lo, hi] where f' runs from - (at lo) to + (at hi), from x: Newton
+// steps kept inside the shrinking bracket, bisection where Newton would leave it.
+// derivatives(x, f1, f2) gives f'(x) and f''(x).
+template <typename Derivatives>
+double bracketed_newton(const Derivatives& derivatives, double lo, double hi, double x) noexcept {
+  // start inside: at an end f' may vanish without a minimum there (the stylus exactly along
+  // the axis is a saddle of the tilt)
+  const double inset = 1e-3 * (hi - lo);
+  x = std::min(std::max(x, lo + inset), hi - inset);
   for (int it = 0; it < 100; ++it) {
-    double g1, g2;
-    position_derivatives(k, x, g1, g2);
-    const double f1 = w_p * g1 + 2.0 * w_r * (x - phi_r);
-    const double f2 = w_p * g2 + 2.0 * w_r;
+    double f1, f2;
+    derivatives(x, f1, f2);
     if (f1 < 0.0) lo = x;
     else if (f1 > 0.0) hi = x;
     else return x;
     double next = f2 > 0.0 ? x - f1 / f2 : 0.5 * (lo + hi);
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // also NaN
-    if (std::abs(next - x) <= 1e-16 * (1.0 + std::abs(x)) || hi - lo <= 4e-16 * (1.0 + hi)) {
+    if (std::abs(next - x) <= 1e-16 * (1.0 + std::abs(x)) || hi - lo <= 4e-16 * (1.0 + std::abs(hi))) {
       return next;
     }
     x = next;
   }
   return x;
+}
+
+// minimiser of f(phi) = w_p g(phi) + w_r (phi - phi_r)^2 between phi0 (g's minimiser) and
+// phi_r, where f' runs from - to +
+double solve_tilt(const TiltCost& k, double w_p, double w_r, double phi0, double phi_r) noexcept {
+  if (phi0 == phi_r || w_p == 0.0) return phi_r;
+  if (w_r == 0.0) return phi0;
+  const double lo = std::min(phi0, phi_r), hi = std::max(phi0, phi_r);
+  // start at the minimiser of the two terms' quadratic models about their minimisers
+  // (g's curvature at its minimiser, from the side where it acts)
+  const double p2 = k.one_sided ? k.b * k.b : k.p2;
+  const double p1 = k.one_sided ? -2.0 * k.a * k.b : k.p1;
+  const double c0 = std::cos(phi0), s0 = std::sin(phi0);
+  const double c_p = w_p * std::max(0.0, 2.0 * p2 * s0 * s0 - (2.0 * p2 * c0 + p1) * c0);
+  const double c_r = 2.0 * w_r;
+  const double x0 = (c_p * phi0 + c_r * phi_r) / (c_p + c_r);
+  return bracketed_newton(
+      [&](double x, double& f1, double& f2) {
+        double g1, g2;
+        position_derivatives(k, x, g1, g2);
+        f1 = w_p * g1 + 2.0 * w_r * (x - phi_r);
+        f2 = w_p * g2 + 2.0 * w_r;
+      },
+      lo, hi, x0);
 }
 
 }  // namespace
@@ -93,6 +115,39 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
   }
   k /= kn;
   R = Eigen::AngleAxisd(phi_r - phi, k).toRotationMatrix() * R_R;
+}
+
+double arc_minimiser(double a, double theta_p, double b, double theta_o, double c,
+                     double w_r) noexcept {
+  // f(x) = -a cos(x - theta_p) + w_r acos(y)^2, y = c + b cos(x - theta_o); both terms grow
+  // with the distance to their own minimiser, so f's minimum lies on the short arc between
+  // theta_p and theta_o (any other point is farther from both than some point on it)
+  const double span = std::remainder(theta_o - theta_p, 2.0 * M_PI);  // in [-pi, pi]
+  if (!(a > 0.0) || span == 0.0) return theta_o;
+  if (!(w_r > 0.0) || !(b > 0.0)) return theta_p;
+  // on u in [0, |span|] from theta_p toward theta_o: f' runs from - to +
+  const double dir = span > 0.0 ? 1.0 : -1.0;
+  const double u = bracketed_newton(
+      [&](double t, double& f1, double& f2) {
+        const double x = theta_p + dir * t;
+        const double sp = std::sin(x - theta_p), cp = std::cos(x - theta_p);
+        const double so = std::sin(x - theta_o), co = std::cos(x - theta_o);
+        const double y = std::min(1.0, std::max(-1.0, c + b * co));
+        const double s1 = std::sqrt(std::max(0.0, 1.0 - y * y));  // sin of the angle
+        const double ang = std::atan2(s1, y);
+        // d acos(y)^2 / dy = -2 ang / s1 (-> -2 as ang -> 0), written h = ang / s1
+        const double h = ang > 1e-8 ? ang / s1 : 1.0 + ang * ang / 6.0;
+        const double dh = ang > 1e-4 ? (ang * y - s1) / (s1 * s1 * s1) : -1.0 / 3.0;
+        const double y1 = -b * so, y2 = -b * co;
+        const double dfx = a * sp - 2.0 * w_r * h * y1;
+        const double ddfx = a * cp - 2.0 * w_r * (dh * y1 * y1 + h * y2);
+        f1 = dir * dfx;  // d/dt = dir d/dx
+        f2 = ddfx;
+      },
+      // start at the minimiser of the two terms' quadratic models: a u^2 / 2 and
+      // w_r b (|span| - u)^2 (acos(c + b cos x)^2 ~ b x^2 near its minimum)
+      0.0, std::abs(span), std::abs(span) * 2.0 * w_r * b / (a + 2.0 * w_r * b));
+  return theta_p + dir * u;
 }
 
 Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept {

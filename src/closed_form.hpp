@@ -37,6 +37,12 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
                      const TiltCost& cost, double w_p, double w_r, const Eigen::Vector3d& hint,
                      Eigen::Matrix3d& R) noexcept;
 
+/// The angle x minimising -a cos(x - theta_p) + w_r acos(c + b cos(x - theta_o))^2 (a, b,
+/// w_r >= 0): a position term least at theta_p and a rotation angle least at theta_o, as
+/// for one revolute joint with weights isotropic per block. On the short arc between them.
+double arc_minimiser(double a, double theta_p, double b, double theta_o, double c,
+                     double w_r) noexcept;
+
 /// Joint values of three revolute joints about x, y, z (in that order) giving the rotation
 /// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it).
 Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept;

@@ -157,6 +157,31 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
       length_(length) {
   require_finite("pivot", pivot);
   require_positive("length", length);
+  Pose T;
+  const double zero = 0.0;
+  chain().forward(&zero, T);
+  rest_ = T.linear();
+}
+
+bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& start,
+                      JointVector& theta) const noexcept {
+  double w_p, w_r;
+  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+  // position: |pivot + L R_n(x) d - p_R|^2 = const - 2 L r cos(x - theta_p)
+  const Eigen::Vector3d v = target.translation() - pivot_;
+  const double vx = v.dot(zero_direction_), vy = v.dot(normal_.cross(zero_direction_));
+  const double r = std::hypot(vx, vy);
+  // rotation: with M = R_0 R_R^T, tr(R_n(x) M) = n'Mn + A cos x + B sin x, and the angle
+  // between R_n(x) R_0 and R_R has cosine (tr - 1) / 2
+  const Eigen::Matrix3d M = rest_ * target.linear().transpose();
+  const double nMn = normal_.dot(M * normal_);
+  const double A = M.trace() - nMn, B = (skew(normal_) * M).trace();
+  const double x = detail::arc_minimiser(2.0 * w_p * length_ * r, std::atan2(vy, vx),
+                                         0.5 * std::hypot(A, B), std::atan2(B, A),
+                                         0.5 * (nMn - 1.0), w_r);
+  theta.resize(1);
+  theta[0] = x + 2.0 * M_PI * std::round((start[0] - x) / (2.0 * M_PI));  // nearest start
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------

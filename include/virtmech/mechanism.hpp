@@ -94,10 +94,14 @@ class PlanarArm final : public ChainMechanism {
   const Eigen::Vector3d& normal() const noexcept { return normal_; }
   double length() const noexcept { return length_; }
   const Eigen::Vector3d& zero_direction() const noexcept { return zero_direction_; }
+  /// Closed form for weights isotropic within position and within rotation.
+  bool place(const Pose& target, const Vector6& w, const JointVector& start,
+             JointVector& theta) const noexcept override;
 
  private:
   Eigen::Vector3d pivot_, normal_, zero_direction_;
   double length_;
+  Eigen::Matrix3d rest_;  // the handle's orientation at theta = 0
 };
 
 /// Paper Fig. 3, PPRRR: the tip slides on the plane through `plane_point` with unit

@@ -9,7 +9,8 @@ For each benchmark case (a device and a mechanism, driven along a fixed joint tr
   binding's own cost is the difference;
 - a straightforward NumPy implementation of the same cycle (same mathematics: chain
   kinematics, weighted Gauss-Newton placements with the same step rules and the same number
-  of iterations as the C++ took in that cycle, pseudo-inverse filters, projection, safety),
+  of iterations as the C++ took in that cycle, or to convergence where the C++ placed in
+  closed form; the probe's closed form; pseudo-inverse filters, projection, safety),
   checked to give the same torques;
 
 and, when the simulation is installed, the closed-loop simulation's real-time factor for
@@ -330,7 +331,10 @@ def np_probe_place(m: NpChain, L: float, T: np.ndarray, W: np.ndarray,
     phi = phi_r
     if phi0 != phi_r and wp > 0.0:
         lo, hi = min(phi0, phi_r), max(phi0, phi_r)
-        phi = phi_r if wr * (hi - lo) ** 2 > wp else phi0
+        c0, s0 = math.cos(phi0), math.sin(phi0)  # quadratic models' minimiser
+        cp = max(0.0, wp * (2.0 * L * L * s0 * s0 - (2.0 * L * L * c0 - 2.0 * d * L) * c0))
+        phi = (cp * phi0 + 2.0 * wr * phi_r) / (cp + 2.0 * wr)
+        phi = min(max(phi, lo + 1e-3 * (hi - lo)), hi - 1e-3 * (hi - lo))  # start inside
         for _ in range(100):  # Newton inside the bracket where f' runs from - to +
             c, s_ = math.cos(phi), math.sin(phi)
             dc = 2.0 * L * L * c - 2.0 * d * L
@@ -383,8 +387,64 @@ def np_planar_arm(pivot: Any, normal: Any, length: float, zero_direction: Any) -
     Rh[:, 2] = [-1.0, 0.0, 0.0]
     Rh[:, 1] = [0.0, 0.0, 1.0]
     Rh[:, 0] = np.cross(Rh[:, 1], Rh[:, 2])
-    return NpChain(_tangent_frame(pivot, n, d), [("revolute", np.array([0.0, 0, 1]), _pose())],
-                   _pose(Rh, [length, 0.0, 0.0]), length_scale=length)
+    chain = NpChain(_tangent_frame(pivot, n, d), [("revolute", np.array([0.0, 0, 1]), _pose())],
+                    _pose(Rh, [length, 0.0, 0.0]), length_scale=length)
+    chain.place = lambda T, W, start: np_planar_arm_place(chain, length, T, W, start)
+    return chain
+
+
+def np_planar_arm_place(m: NpChain, L: float, T: np.ndarray, W: np.ndarray,
+                        start: np.ndarray) -> np.ndarray | None:
+    """The arm's weighted optimum (docs/theory.md, section 4): on the short arc between the
+    angle of the handle's position and that of its orientation, where
+    -a cos(x - tp) + wr acos(c + b cos(x - to))^2 is least."""
+    if not (W[0] == W[1] == W[2] and W[3] == W[4] == W[5]):
+        return None
+    wp, wr = W[0], W[3]
+    B, p0 = m.base[:3, :3], m.base[:3, 3]
+    d, t2, n = B[:, 0], B[:, 1], B[:, 2]
+    v = T[:3, 3] - p0
+    tp = math.atan2(float(v @ t2), float(v @ d))
+    a = 2.0 * wp * L * math.hypot(float(v @ d), float(v @ t2))
+    M = m.forward(np.zeros(1))[:3, :3] @ T[:3, :3].T
+    nMn = float(n @ M @ n)
+    K = np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])
+    A_, B_ = np.trace(M) - nMn, float(np.trace(K @ M))
+    b, to, c = 0.5 * math.hypot(A_, B_), math.atan2(B_, A_), 0.5 * (nMn - 1.0)
+    span = math.remainder(to - tp, 2 * math.pi)
+    if not a > 0.0 or span == 0.0:
+        x = to
+    elif not (wr > 0.0 and b > 0.0):
+        x = tp
+    else:
+        sgn = 1.0 if span > 0 else -1.0
+        lo, hi, u = 0.0, abs(span), abs(span) * 2.0 * wr * b / (a + 2.0 * wr * b)
+        u = min(max(u, 1e-3 * hi), hi - 1e-3 * hi)  # start inside
+        for _ in range(100):  # Newton inside the bracket where f' runs from - to +
+            xx = tp + sgn * u
+            y = min(1.0, max(-1.0, c + b * math.cos(xx - to)))
+            s1 = math.sqrt(max(0.0, 1.0 - y * y))
+            ang = math.atan2(s1, y)
+            h = ang / s1 if ang > 1e-8 else 1.0 + ang * ang / 6.0
+            dh = (ang * y - s1) / s1 ** 3 if ang > 1e-4 else -1.0 / 3.0
+            y1, y2 = -b * math.sin(xx - to), -b * math.cos(xx - to)
+            f1 = sgn * (a * math.sin(xx - tp) - 2.0 * wr * h * y1)
+            f2 = a * math.cos(xx - tp) - 2.0 * wr * (dh * y1 * y1 + h * y2)
+            if f1 < 0.0:
+                lo = u
+            elif f1 > 0.0:
+                hi = u
+            else:
+                break
+            nxt = u - f1 / f2 if f2 > 0.0 else 0.5 * (lo + hi)
+            if not lo < nxt < hi:
+                nxt = 0.5 * (lo + hi)
+            done = abs(nxt - u) <= 1e-16 * (1.0 + abs(u)) or hi - lo <= 4e-16 * (1.0 + hi)
+            u = nxt
+            if done:
+                break
+        x = tp + sgn * u
+    return np.array([x + 2 * math.pi * round((start[0] - x) / (2 * math.pi))])
 
 
 def np_serial5() -> NpChain:
@@ -408,6 +468,8 @@ def np_track(m: NpChain, target: np.ndarray, theta0: np.ndarray, W: np.ndarray,
         placed = m.place(target, W, theta0)
         if placed is not None:
             return placed, 0, True
+    if iterations == 0:  # the core placed in closed form: Gauss-Newton to the same optimum
+        iterations = 50
     theta = np.clip(theta0, m.lower, m.upper)
     cap = np.array([0.5 if t == "revolute" else 0.5 * m.length_scale for t in m.types])
     n = m.dof

@@ -1,4 +1,4 @@
-"""Closed-form placements (Probe, unilateral Probe, PointPivot) equal the Gauss-Newton
+"""Closed-form placements (PlanarArm, Probe, unilateral Probe, PointPivot) equal the Gauss-Newton
 optimum to 1e-9, singular poses included, and are the global optimum (SciPy from many
 starts).
 
@@ -26,6 +26,7 @@ WEIGHTS = {  # the controller's defaults on the Omni, and a fully actuated devic
 N = np.array([0.2, 1.0, -0.3]) / np.linalg.norm([0.2, 1.0, -0.3])
 P0 = np.array([0.01, -0.02, 0.03])
 MECHANISMS = {
+    "PlanarArm": lambda: vm.PlanarArm(P0, N, L, np.cross(N, [0, 0, 1.0]) / np.linalg.norm(np.cross(N, [0, 0, 1.0]))),
     "Probe": lambda: vm.Probe(P0, N, L),
     "Probe/unilateral": lambda: vm.Probe(P0, N, L, unilateral=True),
     "PointPivot": lambda: vm.PointPivot(P0, N, L),
@@ -45,10 +46,12 @@ def targets(rng, count):
         R = vm.so3_exp(rng.normal(size=3))
         p = P0 + rng.normal(scale=0.06, size=3)
         out.append((p, R))
-    down = rot(np.cross([0, 0, 1.0], -N), np.arccos(-N[2]))  # z -> -N: stylus along -N
+    t = np.cross(N, [0, 0, 1.0])
+    t /= np.linalg.norm(t)
+    down = np.column_stack([t, np.cross(-N, t), -N])  # stylus exactly along -N (bitwise)
     for tilt in (0.0, 1e-9, 1e-7, 1e-5, 1e-3, 0.035, 0.3):
         for dh in (0.0, -50e-6, 50e-6, -0.005, 0.005):
-            R = rot(np.cross(N, [1.0, 0.3, 0.0]), tilt) @ down
+            R = down if tilt == 0.0 else rot(np.cross(N, [1.0, 0.3, 0.0]), tilt) @ down
             out.append((P0 + (L + dh) * N + rng.normal(scale=0.01) * np.cross(N, [0, 0, 1.0]), R))
     T = []
     for p, R in out:
@@ -56,6 +59,11 @@ def targets(rng, count):
         X[:3, :3], X[:3, 3] = R, p
         T.append(X)
     return T
+
+
+def joint_scale(m):
+    """1 rad per revolute joint, 0.1 m per prismatic one."""
+    return np.array([1.0 if t == "revolute" else 0.1 for t in m.joint_types])
 
 
 def cost(m, T, W, theta):
@@ -70,7 +78,7 @@ def scipy_best(m, T, W, rng, starts=4):
     best = None
     sw = np.sqrt(W)
     for _ in range(starts):
-        x0 = np.clip(rng.uniform(-1.5, 1.5, m.dof) * np.r_[[0.05] * (m.dof - 3), [1, 1, 1]],
+        x0 = np.clip(rng.uniform(-1.5, 1.5, m.dof) * joint_scale(m) ** 2 * np.pi / 3,
                      np.where(np.isfinite(lo), lo + 1e-9, -10), np.where(np.isfinite(hi), hi, 10))
         r = least_squares(lambda x: sw * vm.pose_error(T, m.forward(x)), x0, bounds=(lo, hi),
                           xtol=1e-13, ftol=1e-15, gtol=1e-15)
@@ -90,7 +98,7 @@ def test_closed_form_equals_gauss_newton(name, weights):
         cf = vm.track(m, T, m.home, W)
         assert cf.iterations == 0 and cf.converged  # placed in closed form
         # Gauss-Newton from the closed form's answer displaced, run to its tolerances
-        start = cf.theta + rng.normal(scale=0.02, size=m.dof) * np.r_[[0.1] * (m.dof - 3), 1, 1, 1]
+        start = cf.theta + rng.normal(scale=0.02, size=m.dof) * joint_scale(m)
         start = np.clip(start, m.lower, m.upper)
         gn = vm.track(m, T, start, W, max_iterations=500, closed_form=False)
         c_cf, c_gn = cost(m, T, W, cf.theta), cost(m, T, W, gn.theta)
