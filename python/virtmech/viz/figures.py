@@ -1,5 +1,6 @@
 """Figures of a run in the paper's style: the plane face-on, the handle drawn as a thick
-line, force arrows; time plots of force and distance from the circle."""
+line, force arrows; time plots of force and distance from the circle (for a Probe: the
+tip's height above its plane and the force along the normal against Kp times the depth)."""
 
 from __future__ import annotations
 
@@ -195,8 +196,11 @@ def time_figure(result, path: str | Path) -> None:
     F = result.cols("fx", "fy", "fz")
     fmag = np.linalg.norm(F, axis=1)
     resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
-    rows = 4 if resist else 3
+    mech = result.scenario.data["mechanism"]
+    probe = mech["type"] == "Probe"  # a plane: the tip's height and the normal force
+    rows = (3 if pivot is not None or probe else 1) + (1 if resist else 0)
     fig, axes = plt.subplots(rows, 1, figsize=(7.5, 2.1 * rows + 0.6), dpi=110, sharex=True)
+    axes = np.atleast_1d(axes)
     ax = axes[0]
     ax.plot(t, fmag, color="crimson", label="|f| device")
     if pivot is not None:
@@ -221,6 +225,11 @@ def time_figure(result, path: str | Path) -> None:
     ax.set_ylim(min(ax.get_ylim()[0], -0.05 * top), 1.35 * top)
     ax.legend(fontsize=7, ncol=4, loc="upper right", framealpha=0.9)
     ax.grid(alpha=0.3)
+    if probe:
+        _probe_panels(result, axes[1], axes[2], mech, t, F)
+    if pivot is None:
+        _finish_time_figure(fig, axes, result, path, resist, normal, t, F)
+        return
     ax = axes[1]
     floor = 1e-3  # [mm]: the plot's floor on its log scale
     dmm = np.maximum(result.col("dist") * 1e3, floor)
@@ -243,8 +252,39 @@ def time_figure(result, path: str | Path) -> None:
         ax.set_ylim(lo, hi + 0.35 * (hi - lo))
         ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
     ax.grid(alpha=0.3)
+    _finish_time_figure(fig, axes, result, path, resist, normal, t, F)
+
+
+def _probe_panels(result, ax_h, ax_f, mech: dict, t, F) -> None:
+    """A Probe's plane: the tip's height above it, and the force along its normal against
+    Kp times the depth (unilateral: the plane pushes only while the tip is behind it)."""
+    n = np.asarray(mech["plane_normal"], dtype=float)
+    n /= np.linalg.norm(n)
+    P = result.cols("px", "py", "pz")
+    S = result.cols("sx", "sy", "sz")
+    h = (P - np.asarray(mech["plane_point"])) @ n + mech["length"] * (S @ n)
+    ax_h.plot(t, h * 1e3, color="k", lw=1.0)
+    ax_h.axhline(0.0, color="tab:red", ls="--", lw=0.8, label="the plane")
+    ax_h.fill_between(t, h * 1e3, 0.0, where=h < 0, color="tab:red", alpha=0.15,
+                      label="tip behind the plane")
+    ax_h.set_ylabel("tip height above\nthe plane [mm]")
+    ax_h.legend(fontsize=7, loc="lower left")
+    ax_h.grid(alpha=0.3)
+    kp = float(result.info["controller_model"]["kp"][0])  # the resolved Kp along x
+    depth = np.maximum(-h, 0.0) if mech.get("unilateral") else -h
+    ax_f.plot(t, F @ n, color="crimson", label="device force along the normal")
+    ax_f.plot(t, kp * depth, color="0.3", ls=":", lw=1.2, label=f"Kp × depth (Kp = {kp:g} N/m)")
+    ax_f.set_ylabel("force along the\nnormal [N]")
+    lo, hi = ax_f.get_ylim()
+    ax_f.set_ylim(lo, hi + 0.35 * (hi - lo))
+    ax_f.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
+    ax_f.grid(alpha=0.3)
+
+
+def _finish_time_figure(fig, axes, result, path, resist: bool, normal, t, F) -> None:
+    plt = _plt()
     if resist:
-        ax = axes[3]
+        ax = axes[-1]
         S = result.cols("sx", "sy", "sz")
         F1 = result.cols("ff1x", "ff1y", "ff1z")
         F2 = result.cols("ff2x", "ff2y", "ff2z")
