@@ -32,6 +32,9 @@ build/cpp/examples/01_omni_loop_cpp | tail -n 3
 build/cpp/examples/02_custom_mechanism_cpp | tail -n 3
 .venv/bin/python examples/python/01_omni_loop.py | tail -n 3
 
+echo "== Python: ruff"
+.venv/bin/ruff check python tests/python examples/python
+
 echo "== Python: pytest"
 set +e
 .venv/bin/python -m pytest

@@ -12,8 +12,8 @@ are (6, n) with rows [v; w] in world axes; pose error e = [p_a - p_b; log(R_a R_
 from . import status
 from ._core import (
     MAX_DOF,
-    Controller,
     ChainMechanism,
+    Controller,
     CycleOutput,
     Device,
     DeviceBase,

@@ -600,9 +600,14 @@ class NpController:
             # P at the nearest placement, or at the un-powered one where the nearest is
             # singular and that one is not (docs/theory.md, section 6)
             sw = np.sqrt(self.w_a)[:, None]
-            rank_v = np.linalg.matrix_rank(sw * J_V, tol=1e-10 * max(np.abs(sw * J_V).max(), 1e-300))
+
+            def rank(J: np.ndarray) -> int:
+                return int(np.linalg.matrix_rank(sw * J, tol=1e-10 * max(np.abs(sw * J).max(),
+                                                                         1e-300)))
+
+            rank_v = rank(J_V)
             if rank_v < min(int((self.w_a > 0).sum()), mech.dof):
-                rank_s = np.linalg.matrix_rank(sw * J_s, tol=1e-10 * max(np.abs(sw * J_s).max(), 1e-300))
+                rank_s = rank(J_s)
                 if rank_s > rank_v:
                     WJ_s = self.w_a[:, None] * J_s
                     f = f + WJ_s @ (symmetric_pinv(J_s.T @ WJ_s) @ (J_s.T @ Fs))

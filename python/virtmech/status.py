@@ -10,13 +10,13 @@ from ._core import (
     STATUS_FAULT_MASK as FAULT_MASK,
 )
 from ._core import (
-    STATUS_FAULT_OUT_OF_RANGE as FAULT_OUT_OF_RANGE,
-)
-from ._core import (
     STATUS_FAULT_NONFINITE_INPUT as FAULT_NONFINITE_INPUT,
 )
 from ._core import (
     STATUS_FAULT_NONFINITE_OUTPUT as FAULT_NONFINITE_OUTPUT,
+)
+from ._core import (
+    STATUS_FAULT_OUT_OF_RANGE as FAULT_OUT_OF_RANGE,
 )
 from ._core import (
     STATUS_FORCE_CLAMPED as FORCE_CLAMPED,

@@ -25,8 +25,9 @@ WEIGHTS = {  # the controller's defaults on the Omni, and a fully actuated devic
 }
 N = np.array([0.2, 1.0, -0.3]) / np.linalg.norm([0.2, 1.0, -0.3])
 P0 = np.array([0.01, -0.02, 0.03])
+IN_PLANE = np.cross(N, [0, 0, 1.0]) / np.linalg.norm(np.cross(N, [0, 0, 1.0]))
 MECHANISMS = {
-    "PlanarArm": lambda: vm.PlanarArm(P0, N, L, np.cross(N, [0, 0, 1.0]) / np.linalg.norm(np.cross(N, [0, 0, 1.0]))),
+    "PlanarArm": lambda: vm.PlanarArm(P0, N, L, IN_PLANE),
     "Probe": lambda: vm.Probe(P0, N, L),
     "Probe/unilateral": lambda: vm.Probe(P0, N, L, unilateral=True),
     "PointPivot": lambda: vm.PointPivot(P0, N, L),

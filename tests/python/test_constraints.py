@@ -200,7 +200,8 @@ def test_range_force_at_its_geometric_value_near_the_singular_pose(delta_deg, tr
     J0 = np.linalg.pinv(np.asarray(omni.jacobian(q0))[:3, :3])  # handle position -> motors
     for k in range(500):
         t = k * 1e-3
-        s, ds = (50e-6 * np.sin(2 * np.pi * 7 * t), 50e-6 * 2 * np.pi * 7 * np.cos(2 * np.pi * 7 * t))
+        w = 2 * np.pi * 7.0  # 7 Hz
+        s, ds = 50e-6 * np.sin(w * t), 50e-6 * w * np.cos(w * t)
         if not tremble:
             s = ds = 0.0
         q = q0.copy()
