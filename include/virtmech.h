@@ -46,7 +46,8 @@ typedef enum vm_device_type {
 
 /* Virtual mechanisms. */
 typedef enum vm_mechanism_type {
-  VM_MECHANISM_PLANAR_ARM = 0,  /* point = pivot, normal, length, direction = zero_direction */
+  VM_MECHANISM_PLANAR_ARM = 0,  /* point = pivot, normal, length, direction = zero_direction
+                                   (zero = automatic) */
   VM_MECHANISM_PROBE = 1,       /* point = plane point, normal = plane normal, length */
   VM_MECHANISM_POINT_PIVOT = 2, /* point, normal, length */
   VM_MECHANISM_LINE_GUIDE = 3,  /* point, direction, length, normal */
@@ -134,8 +135,10 @@ typedef struct vm_diagnostics {
   double wrench[6], wrench_null[6], wrench_range[6], wrench_unrendered[6];
   double theta[VM_MAX_DOF], theta_star[VM_MAX_DOF];
   double error[6], error_dot[6], error_star[6], error_star_dot[6];
-  double handle_pose[16];    /* row-major 4x4 */
-  double mechanism_pose[16]; /* row-major 4x4 */
+  double handle_pose[16];         /* row-major 4x4 */
+  double mechanism_pose[16];      /* row-major 4x4, nearest placement */
+  double mechanism_pose_star[16]; /* row-major 4x4, un-powered placement */
+  double residual, residual_star; /* sqrt(e^T W e) of each placement */
   int iterations, iterations_star;
   uint32_t active, active_star; /* joints held at a limit that acts (bit i: joint i) */
   double ramp, limit_scale;

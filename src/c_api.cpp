@@ -143,6 +143,15 @@ std::shared_ptr<const Device> device_from(const vm_device_desc& d) {
 }
 
 bool unilateral_from(const vm_mechanism_desc& m) {
+  if (m.type == VM_MECHANISM_PLANAR_ARM || m.type == VM_MECHANISM_SERIAL) {
+    if (m.unilateral != 0) {
+      throw std::invalid_argument(
+          "mechanism.unilateral: expected 0 (a PlanarArm or serial chain has no lift-off "
+          "joint; give a serial chain a joint limit instead), got " +
+          std::to_string(m.unilateral));
+    }
+    return false;
+  }
   if (m.unilateral != 0 && m.unilateral != 1) {
     throw std::invalid_argument("mechanism.unilateral: expected 0 or 1, got " +
                                 std::to_string(m.unilateral));
@@ -153,6 +162,7 @@ bool unilateral_from(const vm_mechanism_desc& m) {
 std::shared_ptr<const Mechanism> mechanism_from(const vm_mechanism_desc& m) {
   switch (m.type) {
     case VM_MECHANISM_PLANAR_ARM:
+      unilateral_from(m);
       return std::make_shared<PlanarArm>(v3(m.point), v3(m.normal), m.length, v3(m.direction));
     case VM_MECHANISM_PROBE:
       return std::make_shared<Probe>(v3(m.point), v3(m.normal), m.length, v3(m.direction),
@@ -164,6 +174,7 @@ std::shared_ptr<const Mechanism> mechanism_from(const vm_mechanism_desc& m) {
       return std::make_shared<LineGuide>(v3(m.point), v3(m.direction), m.length, v3(m.normal),
                                          unilateral_from(m));
     case VM_MECHANISM_SERIAL:
+      unilateral_from(m);
       return std::make_shared<SerialChain>(chain_from(m.chain), m.length_scale);
   }
   throw std::invalid_argument("mechanism.type: expected a vm_mechanism_type, got " +
@@ -254,7 +265,7 @@ void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type) {
   desc->normal[2] = 1.0;
   desc->length = 0.1;
   desc->length_scale = 0.1;
-  if (type == VM_MECHANISM_PLANAR_ARM || type == VM_MECHANISM_LINE_GUIDE) desc->direction[0] = 1.0;
+  if (type == VM_MECHANISM_LINE_GUIDE) desc->direction[0] = 1.0;  // PlanarArm: automatic
   init_chain(desc->chain);
 }
 
@@ -344,6 +355,9 @@ void vm_controller_diagnostics(const vm_controller* c, vm_diagnostics* d) {
   copy_vec(o.error_star_dot, d->error_star_dot, 6);
   pose_to(o.handle_pose, d->handle_pose);
   pose_to(o.mechanism_pose, d->mechanism_pose);
+  pose_to(o.mechanism_pose_star, d->mechanism_pose_star);
+  d->residual = o.residual;
+  d->residual_star = o.residual_star;
   d->iterations = o.iterations;
   d->iterations_star = o.iterations_star;
   d->active = o.active;

@@ -151,24 +151,18 @@ double arc_minimiser(double a, double theta_p, double b, double theta_o, double 
 }
 
 Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept {
-  // M = Rx(a) Ry(b) Rz(c): M(0,2) = sin b, M(1,2) = -sin a cos b, M(2,2) = cos a cos b,
-  // M(0,1) = -cos b sin c, M(0,0) = cos b cos c
-  const double sb = std::min(1.0, std::max(-1.0, M(0, 2)));
-  const double cb = std::sqrt(std::max(0.0, M(1, 2) * M(1, 2) + M(2, 2) * M(2, 2)));
+  // M = Rx(a) Ry(b) Rz(c): M(1,2) = -sin a cos b, M(2,2) = cos a cos b give a (at the
+  // gimbal lock, |cos b| < 1e-12, a is free: the start's, within 1e-12 of M); then
+  // Rx(-a) M = Ry(b) Rz(c) gives b and c exactly, also close to the lock
+  const double a = std::hypot(M(1, 2), M(2, 2)) > 1e-12 ? std::atan2(-M(1, 2), M(2, 2))
+                                                        : start[0];
+  const double ca = std::cos(a), sa = std::sin(a);
+  // rows 0 and 1 of N = Rx(-a) M, and N(2, 2)
+  const double n02 = M(0, 2), n10 = ca * M(1, 0) + sa * M(2, 0), n11 = ca * M(1, 1) + sa * M(2, 1);
+  const double n22 = -sa * M(1, 2) + ca * M(2, 2);
   Eigen::Vector3d e1, e2;
-  if (cb > 1e-9) {
-    e1 << std::atan2(-M(1, 2), M(2, 2)), std::atan2(sb, cb), std::atan2(-M(0, 1), M(0, 0));
-    e2 << e1[0] + M_PI, M_PI - e1[1], e1[2] + M_PI;  // the other branch (cos b < 0)
-  } else {
-    // gimbal lock (b = +-pi/2): only a + c (b > 0) or a - c (b < 0) is defined; keep a
-    const double b = sb > 0.0 ? M_PI / 2 : -M_PI / 2;
-    const double a = start[0];
-    // Rx(a) Ry(+-pi/2) Rz(c): M(1,0) = sin(a +- c)... solved for c from M(1,0), M(1,1)
-    const double sum = std::atan2(M(1, 0), M(1, 1));  // a + c (b > 0) or c - a ... see below
-    const double c = sb > 0.0 ? sum - a : sum + a;
-    e1 << a, b, c;
-    e2 = e1;
-  }
+  e1 << a, std::atan2(n02, n22), std::atan2(n10, n11);
+  e2 << e1[0] + M_PI, M_PI - e1[1], e1[2] + M_PI;  // the other branch (cos b < 0)
   auto wrap_near = [](double x, double ref) {
     return x + 2.0 * M_PI * std::round((ref - x) / (2.0 * M_PI));
   };

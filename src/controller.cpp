@@ -244,12 +244,13 @@ void error_rate(const ControllerModel& M, const Placement& p, const Vector6& W,
 // A limit pushes and never pulls: joints of `active` whose motion the wrench f drives back
 // past their bound (the sticking pull of damping as the handle leaves a surface).
 std::uint32_t pulling(const Mechanism& mech, const Placement& p, const Vector6& f) noexcept {
+  // (the push of a limit on the handle drives theta_i away from its bound)
   std::uint32_t pull = 0;
   for (int i = 0; i < mech.dof(); ++i) {
     if (!((p.active >> i) & 1u)) continue;
     const double power = p.J.col(i).dot(f);  // > 0: f drives theta_i up
-    const bool at_lower = p.theta[i] <= mech.lower()[i];
-    if (at_lower ? power < 0.0 : power > 0.0) pull |= 1u << i;
+    const bool at_upper = (p.result.active_upper >> i) & 1u;
+    if (at_upper ? power > 0.0 : power < 0.0) pull |= 1u << i;
   }
   return pull;
 }
@@ -286,6 +287,7 @@ void range_space_term(const ControllerModel& M, const Mechanism& mech, Controlle
                       CycleOutput& out) noexcept {
   Placement& p = d.unpowered;
   out.error_star = pose_error(p.pose, d.handle_pose);
+  std::uint32_t released = 0;
   for (int pass = 0; pass < 2; ++pass) {
     error_rate(M, p, M.w_e_star_effective, d.v_R, d.projector, out.error_star_dot);
     const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
@@ -297,8 +299,19 @@ void range_space_term(const ControllerModel& M, const Mechanism& mech, Controlle
       if (d.projector.rank() > P->rank()) P = &d.projector;
     }
     out.wrench_range = P->range(F);
+    if (pass == 1) {
+      // a released limit lets go: no force along its joint's motion, as the null-space
+      // filter gives for the nearest placement (f <- f - W_A J_i (J_i^T f) / (J_i^T W_A J_i))
+      for (int i = 0; i < mech.dof(); ++i) {
+        if (!((released >> i) & 1u)) continue;
+        const Vector6 WJ_i = M.w_a.cwiseProduct(p.J.col(i));
+        const double norm = p.J.col(i).dot(WJ_i);
+        if (norm > 0.0) out.wrench_range -= (p.J.col(i).dot(out.wrench_range) / norm) * WJ_i;
+      }
+    }
     const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_range) : 0u;
     if (!pull) break;
+    released = pull;
     release(pull, p);
   }
 }
@@ -358,6 +371,8 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
   out.wrench = f;
 }
 
+// Every output of the cycle cleared, so that a faulted cycle reports nothing of the last
+// one (poses identity, errors zero): the caller may reuse one CycleOutput.
 void begin(int n, CycleOutput& out) noexcept {
   out.status = status::kOk;
   out.torque.setZero(n);
@@ -365,8 +380,19 @@ void begin(int n, CycleOutput& out) noexcept {
   out.wrench_null.setZero();
   out.wrench_range.setZero();
   out.wrench_unrendered.setZero();
+  out.error.setZero();
+  out.error_dot.setZero();
   out.error_star.setZero();
   out.error_star_dot.setZero();
+  out.handle_pose.setIdentity();
+  out.mechanism_pose.setIdentity();
+  out.mechanism_pose_star.setIdentity();
+  out.iterations = out.iterations_star = 0;
+  out.residual = out.residual_star = 0.0;
+  out.active = out.active_star = 0;
+  out.ramp = 0.0;
+  out.limit_scale = 1.0;
+  out.computation_time_us = 0.0;
 }
 
 }  // namespace
@@ -398,6 +424,8 @@ std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
   if (q.size() != device_->dof() || dq.size() != device_->dof()) {
     begin(device_->dof(), out);
     fault(*device_, data_, status::kFaultBadSize, out);
+    out.theta = data_.nearest.theta;
+    out.theta_star = data_.unpowered.theta;
     data_.last = out;
     return out.status;
   }
@@ -462,6 +490,11 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   if (!out.torque.allFinite() || !f.allFinite()) {  // belt and braces: zero, start afresh
     d.nearest.theta = mech.home();
     d.unpowered.theta = mech.home();
+    const std::uint32_t informative = out.status;
+    begin(dev.dof(), out);
+    out.status = informative;
+    out.theta = d.nearest.theta;
+    out.theta_star = d.unpowered.theta;
     fault(dev, d, status::kFaultNonFiniteOutput, out);
   }
   const auto t_end = std::chrono::steady_clock::now();

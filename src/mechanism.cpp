@@ -138,6 +138,11 @@ static KinematicChain planar_arm_chain(const Eigen::Vector3d& pivot, const Eigen
 }
 
 static Eigen::Vector3d checked_zero_direction(const Eigen::Vector3d& d, const Eigen::Vector3d& n) {
+  if (d.isZero(0.0)) {  // automatic: world x projected into the plane (world y if x is normal)
+    Eigen::Vector3d a = Eigen::Vector3d::UnitX() - n.x() * n;
+    if (a.norm() < 1e-6) a = Eigen::Vector3d::UnitY() - n.y() * n;
+    return a.normalized();
+  }
   const Eigen::Vector3d u = require_unit("zero_direction", d);
   if (std::abs(u.dot(n)) > 1e-6) {
     throw std::invalid_argument("zero_direction: expected a unit vector in the plane (orthogonal "

@@ -47,12 +47,17 @@ inline void clamp_to_limits(const Mechanism& m, JointVector& x) noexcept {
   for (int i = 0; i < m.dof(); ++i) x[i] = std::min(std::max(x[i], m.lower()[i]), m.upper()[i]);
 }
 
-// joints on a bound that the cost pushes against: -grad_i = 2 g_i points past the bound
-std::uint32_t active_set(const Mechanism& m, const JointVector& theta,
-                         const JointVector& g) noexcept {
+// joints on a bound that the cost pushes against: -grad_i = 2 g_i points past the bound;
+// `upper` gets those on their upper bound (a joint with lower == upper: by the push's side)
+std::uint32_t active_set(const Mechanism& m, const JointVector& theta, const JointVector& g,
+                         std::uint32_t& upper) noexcept {
   std::uint32_t active = 0;
+  upper = 0;
   for (int i = 0; i < m.dof(); ++i) {
-    if ((theta[i] <= m.lower()[i] && g[i] < 0.0) || (theta[i] >= m.upper()[i] && g[i] > 0.0)) {
+    if (theta[i] >= m.upper()[i] && g[i] > 0.0) {
+      active |= 1u << i;
+      upper |= 1u << i;
+    } else if (theta[i] <= m.lower()[i] && g[i] < 0.0) {
       active |= 1u << i;
     }
   }
@@ -80,7 +85,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     evaluate(mechanism, target, theta, weights, ev);
     result.converged = true;
     result.residual = std::sqrt(std::max(ev.cost, 0.0));
-    result.active = active_set(mechanism, theta, ev.g);
+    result.active = active_set(mechanism, theta, ev.g, result.active_upper);
     pose = ev.T;
     J = ev.J;
     return result;
@@ -179,7 +184,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
   if (!result.converged && ev.g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
     result.converged = true;
   }
-  result.active = active_set(mechanism, theta, ev.g);
+  result.active = active_set(mechanism, theta, ev.g, result.active_upper);
   result.residual = std::sqrt(std::max(ev.cost, 0.0));
   pose = ev.T;  // ev is always the evaluation at theta
   J = ev.J;

@@ -85,7 +85,8 @@ class ChainMechanism : public Mechanism {
 /// Paper Fig. 4 / eq. 2 in 3-D: a revolute joint at `pivot` about the unit `normal`; the
 /// handle lies at distance `length` from the pivot in direction R(theta) zero_direction;
 /// the stylus points from the handle to the pivot (the probe's tip rests at the pivot).
-/// Handle frame: z = -R(theta) d, y = normal, x = y x z.
+/// Handle frame: z = -R(theta) d, y = normal, x = y x z. A zero `zero_direction` takes
+/// world x projected into the plane (world y where x is normal to it).
 class PlanarArm final : public ChainMechanism {
  public:
   PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal, double length,

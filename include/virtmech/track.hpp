@@ -31,6 +31,8 @@ struct TrackResult {
   /// Joints held at a limit that acts (bit i: joint i): theta_i sits on its bound and the
   /// weighted cost would fall if it could move past it (the bound's KKT multiplier is > 0).
   std::uint32_t active = 0;
+  /// Of those, the joints held at their upper limit (the others at their lower one).
+  std::uint32_t active_upper = 0;
 };
 
 /// Finds theta minimising the weighted pose error e = pose_error(target, Phi_V(theta)),

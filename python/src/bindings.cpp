@@ -445,17 +445,9 @@ NB_MODULE(_core, m) {
           "__init__",
           [](PlanarArm* self, nb::handle pivot, nb::handle normal, nb::handle length,
              nb::handle zero_direction) {
-            const Eigen::Vector3d n = to_vec3("normal", normal);
-            Eigen::Vector3d d;
-            if (zero_direction.is_none()) {
-              // world x projected into the plane (world y if x is normal to it)
-              d = Eigen::Vector3d::UnitX() - n.normalized().x() * n.normalized();
-              if (d.norm() < 1e-6) d = Eigen::Vector3d::UnitY() - n.normalized().y() * n.normalized();
-              d.normalize();
-            } else {
-              d = to_vec3("zero_direction", zero_direction);
-            }
-            new (self) PlanarArm(to_vec3("pivot", pivot), n, to_double("length", length), d);
+            new (self) PlanarArm(to_vec3("pivot", pivot), to_vec3("normal", normal),
+                                 to_double("length", length),
+                                 opt_vec3("zero_direction", zero_direction));
           },
           "pivot"_a, "normal"_a, "length"_a, "zero_direction"_a = nb::none())
       .def_prop_ro("pivot", &PlanarArm::pivot)

@@ -243,6 +243,11 @@ TEST(CApi, CreateNamesTheBadOption) {
   mech.unilateral = 2;
   EXPECT_EQ(vm_controller_create(&dev, &mech, nullptr, &c, err, sizeof err), VM_ERROR_ARGUMENT);
   EXPECT_NE(std::string(err).find("unilateral"), std::string::npos) << err;
+  vm_mechanism_desc arm;
+  vm_mechanism_desc_init(&arm, VM_MECHANISM_PLANAR_ARM);
+  arm.unilateral = 1;  // a PlanarArm has no lift-off joint
+  EXPECT_EQ(vm_controller_create(&dev, &arm, nullptr, &c, err, sizeof err), VM_ERROR_ARGUMENT);
+  EXPECT_NE(std::string(err).find("mechanism.unilateral"), std::string::npos) << err;
   vm_settings s;
   vm_settings_init(&s);
   mech.unilateral = 0;
@@ -250,4 +255,31 @@ TEST(CApi, CreateNamesTheBadOption) {
   EXPECT_EQ(vm_controller_create(&dev, &mech, &s, &c, err, sizeof err), VM_ERROR_ARGUMENT);
   EXPECT_NE(std::string(err).find("range_margin_m"), std::string::npos) << err;
   EXPECT_EQ(c, nullptr);
+}
+
+TEST(CApi, PlanarArmDefaultsLikeTheCppAndPythonApis) {
+  // an unset zero direction is automatic: world x projected into the plane, or world y
+  for (const Eigen::Vector3d n : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(1, 0, 0),
+                                  Eigen::Vector3d(0.3, 0.4, 0.5).normalized()}) {
+    vm_device_desc dev;
+    vm_device_desc_init(&dev, VM_DEVICE_PHANTOM_OMNI);
+    vm_mechanism_desc arm;
+    vm_mechanism_desc_init(&arm, VM_MECHANISM_PLANAR_ARM);
+    for (int a = 0; a < 3; ++a) arm.normal[a] = n[a];
+    arm.point[2] = -0.1;
+    vm_controller* c = nullptr;
+    char err[256];
+    ASSERT_EQ(vm_controller_create(&dev, &arm, nullptr, &c, err, sizeof err), VM_OK) << err;
+    const PlanarArm ref(Eigen::Vector3d(0, 0, -0.1), n, 0.1, Eigen::Vector3d::Zero());
+    Eigen::Vector3d expected = Eigen::Vector3d::UnitX() - n.x() * n;
+    if (expected.norm() < 1e-6) expected = Eigen::Vector3d::UnitY() - n.y() * n;
+    EXPECT_LT((ref.zero_direction() - expected.normalized()).norm(), 1e-15);
+    double q[6] = {0.1, 0.5, 0.2, 0.0, 0.6, 0.0}, dq[6] = {0}, tau[6];
+    vm_controller_step(c, q, dq, 6, NAN, tau);
+    Controller cpp(std::make_shared<PhantomOmni>(), std::make_shared<PlanarArm>(ref));
+    CycleOutput out;
+    cpp.step(q, dq, out);
+    for (int i = 0; i < 6; ++i) EXPECT_EQ(tau[i], out.torque[i]);
+    vm_controller_destroy(c);
+  }
 }

@@ -253,3 +253,71 @@ def test_range_margin_is_a_setting_checked_at_construction():
     assert np.allclose(c.model["q_max"], omni.upper) and np.allclose(c.model["q_min"], omni.lower)
     with pytest.raises(ValueError, match="range_margin_rad"):
         vm.Controller(omni, mech, range_margin_rad=-1.0)
+
+
+def test_a_released_contact_lets_go_on_the_omni():
+    """On the Omni the plane's push comes through eq. 26's range term. Leaving the plane
+    faster than Kp depth / Kv, damping would pull the handle back: the contact lets go
+    entirely (the spring too), as a lifted probe must."""
+    omni = vm.PhantomOmni()
+    q0 = np.array([0.1, 0.4, 0.2, 0.1, 0.6, 0.2])
+    T0 = omni.forward(q0)
+    n = -T0[:3, 2]  # the stylus along the normal, the tip `depth` behind the plane
+    depth = 0.002
+    probe = vm.Probe(T0[:3, 3] - L * n + depth * n, n, L, unilateral=True)
+    to_motors = np.linalg.pinv(np.asarray(omni.jacobian(q0))[:3, :3])
+    pushes = []
+    for v in (0.0, 0.3, 0.6, 0.9, 0.99, 1.01, 1.5, 3.0):  # [m/s] out of the plane
+        c = vm.Controller(omni, probe, ramp_time_s=0.0)
+        dq = np.zeros(6)
+        dq[:3] = to_motors @ (v * n)
+        f_n = c.step(q0, dq).wrench[:3] @ n
+        expected = max(0.0, KP * depth - KV * v)  # a spring-damper that only pushes
+        assert f_n == pytest.approx(expected, abs=1e-9), (v, f_n)
+        pushes.append(f_n)
+    assert all(a >= b - 1e-12 for a, b in zip(pushes, pushes[1:]))  # never rises as it leaves
+
+
+def test_a_joint_fixed_by_equal_limits_holds_from_both_sides():
+    R = 0.1
+    handle = np.eye(4)
+    handle[0, 3] = R
+    fixed = vm.SerialChain(
+        [vm.Joint("revolute", [0, 0, 1], lower=0.3, upper=0.3)], handle=handle, length_scale=R
+    )
+    c = vm.Controller(cartesian_device(), fixed, ramp_time_s=0.0)
+    for a in (0.5, 0.1):
+        q = np.array([R * np.cos(a), R * np.sin(a), 0, 0, 0, a])
+        out = c.step(q, np.zeros(6))
+        tangent = np.array([-np.sin(a), np.cos(a), 0.0])
+        chord = R * np.array([np.cos(0.3) - np.cos(a), np.sin(0.3) - np.sin(a), 0.0])
+        f_t = out.wrench[:3] @ tangent
+        assert np.sign(f_t) == np.sign(chord @ tangent)  # back toward 0.3
+        assert abs(f_t) >= 0.9 * KP * abs(chord @ tangent), (a, f_t)
+        assert out.active[0]
+
+
+def test_a_faulted_cycle_reports_nothing_of_the_last_one():
+    omni = vm.PhantomOmni()
+    c = vm.Controller(omni, vm.Probe([0, -0.05, 0], [0, 1, 0], L), ramp_time_s=0.0)
+    out = vm.CycleOutput()
+    q = np.array([0.1, 0.5, 0.2, 0.0, 0.6, 0.0])
+    c.step(q, np.zeros(6), out=out)
+    assert np.abs(out.error).max() > 0 and out.residual > 0
+    bad = q.copy()
+    bad[2] = np.nan
+    c.step(bad, np.zeros(6), out=out)
+    assert out.fault
+    assert np.all(out.error == 0) and np.all(out.error_star == 0) and np.all(out.error_dot == 0)
+    assert np.array_equal(out.handle_pose, np.eye(4))
+    assert np.array_equal(out.mechanism_pose, np.eye(4))
+    assert out.residual == 0 and out.iterations == 0 and not out.active.any()
+    assert np.all(np.isfinite(out.theta)) and np.all(out.torque == 0)
+
+
+def test_a_nonfinite_result_gives_home_placements_not_nan():
+    dev = cartesian_device()
+    c = vm.Controller(dev, vm.PointPivot([0, 0, 0], [0, 0, 1], L), ramp_time_s=0.0)
+    out = c.step(np.array([1e308, 0, 0, 0, 0, 0]), np.zeros(6))  # finite, absurd
+    assert "fault_nonfinite_output" in out.status_names
+    assert np.all(np.isfinite(out.theta)) and np.all(out.torque == 0)
