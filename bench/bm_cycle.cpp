@@ -95,18 +95,22 @@ void BM_ProbeTrackWarm(benchmark::State& state) {
 }
 BENCHMARK(BM_ProbeTrackWarm);
 
-void BM_SymmetricPinv(benchmark::State& state) {
-  const int n = static_cast<int>(state.range(0));
-  const Eigen::Index rank = state.range(1);
-  Eigen::MatrixXd B = Eigen::MatrixXd::Random(rank, n);
-  const JointMatrix A = B.transpose() * B;
-  JointMatrix Ap;
+void BM_WeightedProjector(benchmark::State& state) {
+  // factorise sqrt(W) J (6 x m) and apply P: the filters' unit of work
+  const int m = static_cast<int>(state.range(0));
+  Jacobian J(6, m);
+  J.setRandom();
+  Vector6 w;
+  w << 1.0, 1.0, 1.0, 0.0, 0.0, 0.0;
+  const Vector6 f = Vector6::Constant(0.3);
+  WeightedProjector P;
   for (auto _ : state) {
-    symmetric_pinv(A, Ap);
-    benchmark::DoNotOptimize(Ap.data());
+    P.compute(J, w);
+    Vector6 r = P.range(f);
+    benchmark::DoNotOptimize(r.data());
   }
 }
-BENCHMARK(BM_SymmetricPinv)->Args({5, 3})->Args({5, 5})->Args({3, 3})->Args({1, 1});
+BENCHMARK(BM_WeightedProjector)->Arg(1)->Arg(3)->Arg(5)->Arg(6);
 
 void BM_PoseError(benchmark::State& state) {
   Pose a = Pose::Identity(), b = Pose::Identity();

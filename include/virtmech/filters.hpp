@@ -5,20 +5,11 @@
 
 namespace virtmech {
 
-/// The one relative rank tolerance of the filters.
-/// - WeightedProjector (and so range_filter, null_filter): a pivot |R_ii| of the column-pivoted
-///   QR of sqrt(W) J at or below kPinvTolerance * |R_00| counts as 0, i.e. singular values of
-///   sqrt(W) J below ~1e-10 of the largest (rounding-level ones, from repeated or zero columns,
-///   are ~1e-16; a Probe 1e-5 rad from its singular pose has ~1e-6, and stays full rank).
-/// - symmetric_pinv: eigenvalues of the positive semi-definite A below kPinvTolerance * the
-///   largest count as 0 (for A = J^T W J that is ~1e-5 on the singular values of sqrt(W) J).
+/// The one relative rank tolerance of the filters: a pivot |R_ii| of the column-pivoted QR
+/// of sqrt(W) J at or below kPinvTolerance * |R_00| counts as 0, i.e. singular values of
+/// sqrt(W) J below ~1e-10 of the largest (rounding-level ones, from repeated or zero columns,
+/// are ~1e-16; a Probe 1e-5 rad from its singular pose has ~1e-6, and stays full rank).
 constexpr double kPinvTolerance = 1e-10;
-
-/// Moore-Penrose pseudo-inverse of a symmetric positive semi-definite matrix A (n x n):
-/// eigenvalues below kPinvTolerance * max eigenvalue count as 0. Computed by Cholesky when
-/// A is provably conditioned well enough that no eigenvalue is cut (then A^+ = A^-1), else
-/// by eigen-decomposition. Allocation-free.
-void symmetric_pinv(const JointMatrix& A, JointMatrix& A_pinv) noexcept;
 
 /// P(W) and N(W) for one Jacobian and diagonal weights, factorised once and applied many
 /// times. Fixed capacity (J has at most kMaxDof columns); noexcept; never allocates.

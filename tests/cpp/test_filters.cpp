@@ -392,17 +392,3 @@ TEST(FilterProjector, NeverAllocates) {
   EXPECT_TRUE(std::isfinite(sum));
 }
 
-TEST(FilterProjector, SymmetricPinvStillWorks) {
-  std::mt19937 rng(29);
-  std::normal_distribution<double> g(0.0, 1.0);
-  for (int n = 1; n <= kMaxDof; ++n) {
-    Dyn B(n, std::max(1, n - 2));
-    for (Eigen::Index j = 0; j < B.cols(); ++j)
-      for (int i = 0; i < n; ++i) B(i, j) = g(rng);
-    const JointMatrix A = B * B.transpose();
-    JointMatrix Ap;
-    symmetric_pinv(A, Ap);
-    const Dyn ref = Dyn(A).completeOrthogonalDecomposition().pseudoInverse();
-    EXPECT_LE((Dyn(Ap) - ref).norm(), 1e-8 * std::max(1.0, ref.norm())) << n;
-  }
-}
