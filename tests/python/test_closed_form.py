@@ -103,7 +103,7 @@ def test_closed_form_equals_gauss_newton(name, weights):
         start = np.clip(start, m.lower, m.upper)
         gn = vm.track(m, T, start, W, max_iterations=500, closed_form=False)
         c_cf, c_gn = cost(m, T, W, cf.theta), cost(m, T, W, gn.theta)
-        assert c_cf <= c_gn + 1e-12 * max(1.0, c_gn), (c_cf, c_gn)  # never worse
+        assert c_cf <= c_gn * (1.0 + 1e-9) + 1e-15, (c_cf, c_gn)  # never worse
         # and Gauss-Newton started on it stays there: it is Gauss-Newton's optimum, to 1e-9
         # in the metric the cost sees (a weight of 1e-6 leaves directions nearly flat)
         fixed = vm.track(m, T, cf.theta, W, max_iterations=500, closed_form=False)
@@ -118,10 +118,11 @@ def test_closed_form_is_the_global_optimum(name):
     rng = np.random.default_rng(11)
     for weights in ("nearest", "unpowered", "full"):
         W = WEIGHTS[weights]
-        for T in targets(rng, 6)[::7]:
+        poses = targets(rng, 6)
+        for T in poses[:6] + poses[6::7]:  # six random poses, five at the singular pose
             c_cf = cost(m, T, W, vm.track(m, T, m.home, W).theta)
             c_ref = scipy_best(m, T, W, rng)
-            assert c_cf <= c_ref + 1e-10 * max(1.0, c_ref), (weights, c_cf, c_ref)
+            assert c_cf <= c_ref * (1.0 + 1e-9) + 1e-15, (weights, c_cf, c_ref)
 
 
 def test_anisotropic_weights_fall_back_to_gauss_newton():
