@@ -328,6 +328,16 @@ void keep_renderable(const ControllerModel& M, const Device& dev, ControllerData
   for (int i = 0; i < n; ++i) {
     if (!dev.actuated(i)) J_p.col(c++) = d.J_R.col(i);
   }
+  if (c == 3 && J_p.topRows<3>().isZero(0.0)) {
+    // three passive axes through the handle origin (the Omni's gimbal): P(D; J_p) f is
+    // [0; A A^+ m] = [0; m] while the axes span space, A the 3 x 3 of their directions
+    const Eigen::Matrix3d A = J_p.bottomRows<3>();
+    if (std::abs(A.determinant()) > 1e-10 * A.colwise().norm().prod()) {
+      out.wrench_unrendered << 0.0, 0.0, 0.0, f.tail<3>();
+      f.tail<3>().setZero();
+      return;
+    }
+  }
   const double L2 = M.length_scale * M.length_scale;
   Vector6 D;
   D << 1.0, 1.0, 1.0, L2, L2, L2;
