@@ -217,6 +217,41 @@ ControllerSettings settings_from(const vm_settings& s) {
   return c;
 }
 
+// The C++ constructors name their own parameters ("zero_direction: expected ..."); a C
+// caller fills struct fields: the message names the field ("mechanism.direction: ...").
+std::string c_field(const std::string& table, const std::string& name) {
+  static const std::pair<const char*, const char*> kMechanism[] = {
+      {"pivot", "point"},          {"plane_point", "point"}, {"plane_normal", "normal"},
+      {"zero_direction", "direction"}, {"tangent", "direction"}, {"length_scale", "length_scale"}};
+  static const std::pair<const char*, const char*> kDevice[] = {
+      {"l1", "link1"}, {"l2", "link2"}, {"motor_torque_limit", "torque_limit"}};
+  if (table == "mechanism") {
+    for (const auto& [cpp, c] : kMechanism)
+      if (name == cpp) return c;
+  } else if (table == "device") {
+    for (const auto& [cpp, c] : kDevice)
+      if (name == cpp) return c;
+  }
+  return name;
+}
+
+template <typename Desc, typename Make>
+auto in_c_terms(const char* table, const Desc& desc, Make make) -> decltype(make(desc)) {
+  try {
+    return make(desc);
+  } catch (const std::invalid_argument& e) {
+    const std::string msg = e.what();
+    if (msg.rfind(std::string(table) + ".", 0) == 0) throw;  // already in C terms
+    // "name[i]...: rest" -> "table.c_name[i]...: rest"
+    const size_t colon = msg.find(':');
+    const size_t end = std::min(colon, msg.find('['));
+    if (colon == std::string::npos || end == 0) throw;
+    const std::string name = msg.substr(0, end);
+    throw std::invalid_argument(std::string(table) + "." + c_field(table, name) +
+                                msg.substr(end));
+  }
+}
+
 void write_error(char* error, size_t size, const char* msg) {
   if (!error || size == 0) return;
   std::strncpy(error, msg, size - 1);
@@ -302,8 +337,12 @@ int vm_controller_create(const vm_device_desc* device, const vm_mechanism_desc* 
   try {
     vm_settings defaults;
     vm_settings_init(&defaults);
-    *out = new vm_controller(device_from(*device), mechanism_from(*mechanism),
-                             settings_from(settings ? *settings : defaults));
+    auto dev = in_c_terms("device", *device, device_from);
+    auto mech = in_c_terms("mechanism", *mechanism, mechanism_from);
+    // the settings are checked against the device and mechanism by the controller itself
+    *out = in_c_terms("settings", settings ? *settings : defaults, [&](const vm_settings& s) {
+      return new vm_controller(dev, mech, settings_from(s));
+    });
     write_error(error, error_size, "");
     return VM_OK;
   } catch (const std::invalid_argument& e) {

@@ -238,7 +238,18 @@ TEST(CApi, CreateNamesTheBadOption) {
   vm_controller* c = nullptr;
   char err[256];
   EXPECT_EQ(vm_controller_create(&dev, &mech, nullptr, &c, err, sizeof err), VM_ERROR_ARGUMENT);
-  EXPECT_NE(std::string(err).find("gimbal_sign[1]"), std::string::npos) << err;
+  EXPECT_NE(std::string(err).find("device.gimbal_sign[1]"), std::string::npos) << err;
+  // messages name the C fields, not the C++ parameters
+  vm_mechanism_desc arm_dir;
+  vm_mechanism_desc_init(&arm_dir, VM_MECHANISM_PLANAR_ARM);
+  arm_dir.direction[0] = 2.0;  // not a unit vector
+  vm_device_desc_init(&dev, VM_DEVICE_PHANTOM_OMNI);
+  EXPECT_EQ(vm_controller_create(&dev, &arm_dir, nullptr, &c, err, sizeof err), VM_ERROR_ARGUMENT);
+  EXPECT_EQ(std::string(err).rfind("mechanism.direction: ", 0), 0u) << err;
+  dev.link1 = -1.0;
+  vm_mechanism_desc_init(&arm_dir, VM_MECHANISM_PLANAR_ARM);
+  EXPECT_EQ(vm_controller_create(&dev, &arm_dir, nullptr, &c, err, sizeof err), VM_ERROR_ARGUMENT);
+  EXPECT_EQ(std::string(err).rfind("device.link1: ", 0), 0u) << err;
   vm_device_desc_init(&dev, VM_DEVICE_PHANTOM_OMNI);
   mech.unilateral = 2;
   EXPECT_EQ(vm_controller_create(&dev, &mech, nullptr, &c, err, sizeof err), VM_ERROR_ARGUMENT);
@@ -253,7 +264,7 @@ TEST(CApi, CreateNamesTheBadOption) {
   mech.unilateral = 0;
   s.range_margin_m = -1.0;
   EXPECT_EQ(vm_controller_create(&dev, &mech, &s, &c, err, sizeof err), VM_ERROR_ARGUMENT);
-  EXPECT_NE(std::string(err).find("range_margin_m"), std::string::npos) << err;
+  EXPECT_EQ(std::string(err).rfind("settings.range_margin_m: ", 0), 0u) << err;
   EXPECT_EQ(c, nullptr);
 }
 
