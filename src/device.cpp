@@ -111,20 +111,10 @@ void Device::forward(const double* q, Pose& T) const noexcept {
 
 namespace {
 
-std::vector<JointType> chain_kinds(const KinematicChain& c) {
-  std::vector<JointType> k;
-  for (int i = 0; i < c.dof(); ++i) k.push_back(c.joint(i).type);
-  return k;
-}
-
 // an uncoupled chain's joint limits are the device's unless the limits say otherwise
 DeviceLimits with_chain_limits(const KinematicChain& c, DeviceLimits L) {
-  if (L.lower.empty()) {
-    for (int i = 0; i < c.dof(); ++i) L.lower.push_back(c.joint(i).lower);
-  }
-  if (L.upper.empty()) {
-    for (int i = 0; i < c.dof(); ++i) L.upper.push_back(c.joint(i).upper);
-  }
+  if (L.lower.empty()) L.lower = c.lower();
+  if (L.upper.empty()) L.upper = c.upper();
   return L;
 }
 
@@ -139,7 +129,7 @@ SerialDevice::SerialDevice(std::string name, const KinematicChain& chain,
 SerialDevice::SerialDevice(std::string name, const KinematicChain& chain,
                            const DeviceLimits& limits, const JointMatrix& coupling,
                            const JointVector& coupling_offset)
-    : Device(std::move(name), chain_kinds(chain), limits), chain_(chain), coupling_(coupling),
+    : Device(std::move(name), chain.kinds(), limits), chain_(chain), coupling_(coupling),
       coupling_offset_(coupling_offset) {
   const int n = chain_.dof();
   if (coupling_.rows() != n || coupling_.cols() != n || coupling_offset_.size() != n) {

@@ -108,6 +108,24 @@ std::vector<Joint> KinematicChain::joints() const {
   return std::vector<Joint>(joints_.begin(), joints_.begin() + dof_);
 }
 
+std::vector<JointType> KinematicChain::kinds() const {
+  std::vector<JointType> k;
+  for (int i = 0; i < dof_; ++i) k.push_back(joints_[static_cast<size_t>(i)].type);
+  return k;
+}
+
+std::vector<double> KinematicChain::lower() const {
+  std::vector<double> v;
+  for (int i = 0; i < dof_; ++i) v.push_back(joints_[static_cast<size_t>(i)].lower);
+  return v;
+}
+
+std::vector<double> KinematicChain::upper() const {
+  std::vector<double> v;
+  for (int i = 0; i < dof_; ++i) v.push_back(joints_[static_cast<size_t>(i)].upper);
+  return v;
+}
+
 void KinematicChain::forward(const double* q, Pose& T) const noexcept {
   Frame f = start(base_);
   for (int i = 0; i < dof_; ++i) {

@@ -97,24 +97,16 @@ void Mechanism::forward(const double* x, Pose& T) const noexcept {
 
 namespace {
 
-std::vector<JointType> chain_kinds(const KinematicChain& c) {
-  std::vector<JointType> k;
-  for (int i = 0; i < c.dof(); ++i) k.push_back(c.joint(i).type);
-  return k;
-}
-
-JointVector chain_limit(const KinematicChain& c, bool upper) {
-  JointVector v(c.dof());
-  for (int i = 0; i < c.dof(); ++i) v[i] = upper ? c.joint(i).upper : c.joint(i).lower;
-  return v;
+JointVector as_joint_vector(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
 }
 
 }  // namespace
 
 ChainMechanism::ChainMechanism(std::string type, KinematicChain chain, double length_scale,
                                const JointVector& home)
-    : Mechanism(std::move(type), chain_kinds(chain), chain_limit(chain, false),
-                chain_limit(chain, true), home, length_scale),
+    : Mechanism(std::move(type), chain.kinds(), as_joint_vector(chain.lower()),
+                as_joint_vector(chain.upper()), home, length_scale),
       chain_(std::move(chain)) {}
 
 // ---------------------------------------------------------------------------------------

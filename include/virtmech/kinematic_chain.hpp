@@ -42,6 +42,10 @@ class KinematicChain {
   /// Joint i, 0 <= i < dof() (unchecked).
   const Joint& joint(int i) const noexcept { return joints_[static_cast<size_t>(i)]; }
   std::vector<Joint> joints() const;
+  /// Each joint's kind, lower and upper limit (construction-time helpers; allocate).
+  std::vector<JointType> kinds() const;
+  std::vector<double> lower() const;
+  std::vector<double> upper() const;
   const Pose& base() const noexcept { return base_; }
   const Pose& handle() const noexcept { return handle_; }
 

@@ -314,6 +314,27 @@ def np_probe(point: Any, normal: Any, length: float) -> NpChain:
     return chain
 
 
+def _bracketed_newton(derivatives: Any, lo: float, hi: float, x: float) -> float:
+    """The root of f' in [lo, hi] where f' runs from - to +, from x inside: Newton steps kept
+    in the shrinking bracket, bisection where they would leave it (as the core)."""
+    x = min(max(x, lo + 1e-3 * (hi - lo)), hi - 1e-3 * (hi - lo))
+    for _ in range(100):
+        f1, f2 = derivatives(x)
+        if f1 < 0.0:
+            lo = x
+        elif f1 > 0.0:
+            hi = x
+        else:
+            return x
+        nxt = x - f1 / f2 if f2 > 0.0 else 0.5 * (lo + hi)
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - x) <= 1e-16 * (1.0 + abs(x)) or hi - lo <= 4e-16 * (1.0 + abs(hi)):
+            return nxt
+        x = nxt
+    return x
+
+
 def np_probe_place(m: NpChain, L: float, T: np.ndarray, W: np.ndarray,
                    start: np.ndarray) -> np.ndarray | None:
     """The probe's weighted optimum in closed form (docs/theory.md, section 4): the stylus's
@@ -334,25 +355,14 @@ def np_probe_place(m: NpChain, L: float, T: np.ndarray, W: np.ndarray,
         c0, s0 = math.cos(phi0), math.sin(phi0)  # quadratic models' minimiser
         cp = max(0.0, wp * (2.0 * L * L * s0 * s0 - (2.0 * L * L * c0 - 2.0 * d * L) * c0))
         phi = (cp * phi0 + 2.0 * wr * phi_r) / (cp + 2.0 * wr)
-        phi = min(max(phi, lo + 1e-3 * (hi - lo)), hi - 1e-3 * (hi - lo))  # start inside
-        for _ in range(100):  # Newton inside the bracket where f' runs from - to +
-            c, s_ = math.cos(phi), math.sin(phi)
+
+        def derivatives(x: float) -> tuple[float, float]:
+            c, s_ = math.cos(x), math.sin(x)
             dc = 2.0 * L * L * c - 2.0 * d * L
-            f1 = wp * (-dc * s_) + 2.0 * wr * (phi - phi_r)
-            f2 = wp * (2.0 * L * L * s_ * s_ - dc * c) + 2.0 * wr
-            if f1 < 0.0:
-                lo = phi
-            elif f1 > 0.0:
-                hi = phi
-            else:
-                break
-            nxt = phi - f1 / f2 if f2 > 0.0 else 0.5 * (lo + hi)
-            if not lo < nxt < hi:
-                nxt = 0.5 * (lo + hi)
-            done = abs(nxt - phi) <= 1e-16 * (1.0 + abs(phi)) or hi - lo <= 4e-16 * (1.0 + hi)
-            phi = nxt
-            if done:
-                break
+            return (wp * (-dc * s_) + 2.0 * wr * (x - phi_r),
+                    wp * (2.0 * L * L * s_ * s_ - dc * c) + 2.0 * wr)
+
+        phi = _bracketed_newton(derivatives, lo, hi, phi)
     R = T[:3, :3]
     if phi != phi_r:
         k = np.cross(u_r, n)
@@ -419,30 +429,19 @@ def np_planar_arm_place(m: NpChain, L: float, T: np.ndarray, W: np.ndarray,
     else:
         sgn = 1.0 if span > 0 else -1.0
         lo, hi, u = 0.0, abs(span), abs(span) * 2.0 * wr * b / (a + 2.0 * wr * b)
-        u = min(max(u, 1e-3 * hi), hi - 1e-3 * hi)  # start inside
-        for _ in range(100):  # Newton inside the bracket where f' runs from - to +
-            xx = tp + sgn * u
+
+        def derivatives(t: float) -> tuple[float, float]:
+            xx = tp + sgn * t
             y = min(1.0, max(-1.0, c + b * math.cos(xx - to)))
             s1 = math.sqrt(max(0.0, 1.0 - y * y))
             ang = math.atan2(s1, y)
             h = ang / s1 if ang > 1e-8 else 1.0 + ang * ang / 6.0
             dh = (ang * y - s1) / s1 ** 3 if ang > 1e-4 else -1.0 / 3.0
             y1, y2 = -b * math.sin(xx - to), -b * math.cos(xx - to)
-            f1 = sgn * (a * math.sin(xx - tp) - 2.0 * wr * h * y1)
-            f2 = a * math.cos(xx - tp) - 2.0 * wr * (dh * y1 * y1 + h * y2)
-            if f1 < 0.0:
-                lo = u
-            elif f1 > 0.0:
-                hi = u
-            else:
-                break
-            nxt = u - f1 / f2 if f2 > 0.0 else 0.5 * (lo + hi)
-            if not lo < nxt < hi:
-                nxt = 0.5 * (lo + hi)
-            done = abs(nxt - u) <= 1e-16 * (1.0 + abs(u)) or hi - lo <= 4e-16 * (1.0 + hi)
-            u = nxt
-            if done:
-                break
+            return (sgn * (a * math.sin(xx - tp) - 2.0 * wr * h * y1),
+                    a * math.cos(xx - tp) - 2.0 * wr * (dh * y1 * y1 + h * y2))
+
+        u = _bracketed_newton(derivatives, lo, hi, u)
         x = tp + sgn * u
     return np.array([x + 2 * math.pi * round((start[0] - x) / (2 * math.pi))])
 
