@@ -72,14 +72,7 @@ Device::Device(std::string name, const std::vector<JointType>& kinds,
   }
   lower_ = to_joint_vector("lower", limits.lower, n, -kInf);
   upper_ = to_joint_vector("upper", limits.upper, n, kInf);
-  for (int i = 0; i < n; ++i) {
-    if (std::isnan(lower_[i]) || std::isnan(upper_[i]) || !(lower_[i] <= upper_[i])) {
-      std::ostringstream os;
-      os << "lower/upper[" << i << "]: expected lower <= upper, got " << lower_[i] << " and "
-         << upper_[i];
-      throw std::invalid_argument(os.str());
-    }
-  }
+  require_ordered("lower/upper", lower_, upper_);
   if (!(limits.max_force > 0.0)) {
     std::ostringstream os;
     os << "max_force: expected > 0 [N], got " << limits.max_force;

@@ -79,13 +79,8 @@ Mechanism::Mechanism(std::string type, const std::vector<JointType>& kinds,
     throw std::invalid_argument(os.str());
   }
   require_finite("home", home_);
+  require_ordered("lower/upper", lower_, upper_);
   for (int i = 0; i < dof_; ++i) {
-    if (std::isnan(lower_[i]) || std::isnan(upper_[i]) || !(lower_[i] <= upper_[i])) {
-      std::ostringstream os;
-      os << "lower/upper[" << i << "]: expected lower <= upper, got " << lower_[i] << " and "
-         << upper_[i];
-      throw std::invalid_argument(os.str());
-    }
     home_[i] = std::min(std::max(home_[i], lower_[i]), upper_[i]);
   }
 }

@@ -64,6 +64,18 @@ Eigen::Vector3d require_unit(const std::string& name, const Eigen::Vector3d& n) 
   return n / len;
 }
 
+void require_ordered(const std::string& name, const Eigen::Ref<const Eigen::VectorXd>& lower,
+                     const Eigen::Ref<const Eigen::VectorXd>& upper) {
+  for (Eigen::Index i = 0; i < lower.size(); ++i) {
+    if (std::isnan(lower[i]) || std::isnan(upper[i]) || !(lower[i] <= upper[i])) {
+      std::ostringstream os;
+      os << name << "[" << i << "]: expected lower <= upper, got " << lower[i] << " and "
+         << upper[i];
+      throw std::invalid_argument(os.str());
+    }
+  }
+}
+
 void require_pose(const std::string& name, const Pose& T) {
   const Eigen::Matrix4d& M = T.matrix();
   if (!M.allFinite()) {

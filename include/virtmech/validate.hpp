@@ -16,6 +16,9 @@ void require_non_negative(const std::string& name, double v);
 void require_non_negative(const std::string& name, const Eigen::Ref<const Eigen::VectorXd>& v);
 /// Requires a unit vector (|n| within 1e-6 of 1) and returns it renormalised.
 Eigen::Vector3d require_unit(const std::string& name, const Eigen::Vector3d& n);
+/// Requires lower[i] <= upper[i] for every i (no NaN; infinite bounds allowed).
+void require_ordered(const std::string& name, const Eigen::Ref<const Eigen::VectorXd>& lower,
+                     const Eigen::Ref<const Eigen::VectorXd>& upper);
 /// Requires a finite rigid transform (orthonormal rotation, last row 0 0 0 1).
 void require_pose(const std::string& name, const Pose& T);
 
