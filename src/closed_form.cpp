@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 #include "virtmech/se3.hpp"
 
 namespace virtmech::detail {
@@ -67,6 +69,14 @@ double bracketed_newton(const Derivatives& derivatives, double lo, double hi, do
   return x;
 }
 
+// for ang = acos(y) with s1 = sin(ang) >= 0 given: h = ang / s1 and dh/dy, so that
+// d acos(y)^2 / dy = -2 h (-> -2 as ang -> 0) and d^2 acos(y)^2 / dy^2 = -2 dh/dy
+void acos_squared_terms(double y, double s1, double& ang, double& h, double& dh) noexcept {
+  ang = std::atan2(s1, y);
+  h = ang > 1e-8 ? ang / s1 : 1.0 + ang * ang / 6.0;
+  dh = ang > 1e-4 ? (ang * y - s1) / (s1 * s1 * s1) : -1.0 / 3.0;
+}
+
 // minimiser of f(phi) = w_p g(phi) + w_r (phi - phi_r)^2 between phi0 (g's minimiser) and
 // phi_r, where f' runs from - to +
 double solve_tilt(const TiltCost& k, double w_p, double w_r, double phi0, double phi_r) noexcept {
@@ -117,6 +127,257 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
   R = Eigen::AngleAxisd(phi_r - phi, k).toRotationMatrix() * R_R;
 }
 
+Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u) noexcept {
+  const Eigen::Vector3d u_r = -R_R.col(2);
+  Eigen::Vector3d k = u_r.cross(u);
+  const double s = k.norm(), c = u_r.dot(u);
+  if (s <= 1e-300) {
+    if (c > 0.0) return R_R;
+    k = any_orthogonal(u_r);
+  } else {
+    k /= s;
+  }
+  return Eigen::AngleAxisd(std::atan2(s, c), k).toRotationMatrix() * R_R;
+}
+
+Eigen::Vector3d TipSet::residual(const Eigen::Vector3d& q, bool& lifted) const noexcept {
+  Eigen::Vector3d r = q - point;
+  r -= free.dot(r) * free;
+  const double lambda = one_sided.dot(r);
+  lifted = lambda > 0.0;
+  if (lifted) r -= lambda * one_sided;
+  return r;
+}
+
+namespace {
+
+// f(u) = w_p dist(p_R - L u, set)^2 + w_r acos(u . u_R)^2 on the unit sphere
+struct StylusCost {
+  const TipSet& set;
+  Eigen::Vector3d p_R, u_R;
+  double L, w_p, w_r;
+
+  double value(const Eigen::Vector3d& u) const noexcept {
+    bool lifted;
+    const double ang = std::atan2(u.cross(u_R).norm(), u.dot(u_R));
+    return w_p * set.residual(p_R - L * u, lifted).squaredNorm() + w_r * ang * ang;
+  }
+
+  // the ambient gradient g and Hessian H of f at u (as a function on R^3)
+  void derivatives(const Eigen::Vector3d& u, Eigen::Vector3d& g, Eigen::Matrix3d& H) const noexcept {
+    bool lifted;
+    const Eigen::Vector3d r = set.residual(p_R - L * u, lifted);
+    // dist^2 is piecewise quadratic: its Hessian is 2 (I - f f^T - [lifted] o o^T)
+    Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - set.free * set.free.transpose();
+    if (lifted) P -= set.one_sided * set.one_sided.transpose();
+    double ang, h, dh;
+    acos_squared_terms(u.dot(u_R), u.cross(u_R).norm(), ang, h, dh);
+    g = -2.0 * w_p * L * r - 2.0 * w_r * h * u_R;
+    H = 2.0 * w_p * L * L * P - 2.0 * w_r * dh * u_R * u_R.transpose();
+  }
+};
+
+// Newton's method on the sphere from u (gradient steps where the Hessian is not positive
+// definite, an Armijo backtracking line search, the exponential map as retraction)
+Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& value) noexcept {
+  value = f.value(u);
+  const double scale = f.w_p * f.L * f.L + f.w_r;
+  for (int it = 0; it < 60; ++it) {
+    Eigen::Vector3d g;
+    Eigen::Matrix3d H;
+    f.derivatives(u, g, H);
+    Eigen::Matrix<double, 3, 2> E;
+    E.col(0) = any_orthogonal(u);
+    E.col(1) = u.cross(E.col(0));
+    const Eigen::Vector2d g2 = E.transpose() * g;
+    if (!(g2.norm() > 1e-15 * scale)) break;  // also NaN
+    // the Riemannian Hessian: the tangent block of H less (u . g) I
+    Eigen::Matrix2d H2 = E.transpose() * H * E;
+    H2.diagonal().array() -= u.dot(g);
+    // Newton's step where H2 is positive definite; else along the direction of negative
+    // curvature (a saddle such as the stylus exactly along a symmetry axis), as far as a
+    // radian and backtracked, plus Newton's step along the other eigenvector
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig;
+    eig.computeDirect(H2);  // closed form for 2 x 2
+    const Eigen::Vector2d lam = eig.eigenvalues();
+    const Eigen::Matrix2d V = eig.eigenvectors();
+    const double floor = 1e-12 * scale;
+    Eigen::Vector2d step;
+    const bool newton = lam[0] > floor;
+    if (newton) {
+      step = -(V.col(0) * (V.col(0).dot(g2) / lam[0]) + V.col(1) * (V.col(1).dot(g2) / lam[1]));
+    } else {
+      const double g1 = V.col(0).dot(g2), g2v = V.col(1).dot(g2);
+      step = V.col(0) * (lam[0] < -floor ? (g1 > 0.0 ? -1.0 : 1.0) : -g1 / scale) -
+             V.col(1) * (g2v / (lam[1] > floor ? lam[1] : scale));
+    }
+    const double n = step.norm();
+    if (n > 1.0) step /= n;  // at most a radian at a time
+    if (newton && n < 1e-3) {
+      // close to the minimum Newton converges quadratically; a line search would stall
+      // where the decrease falls below the cost's rounding (about sqrt(eps) from it)
+      u = (std::cos(n) * u + std::sin(n) / n * (E * step)).normalized();
+      value = f.value(u);
+      if (n <= 1e-15) break;
+      continue;
+    }
+    const double slope = std::min(g2.dot(step), 0.0);  // 0 only at a saddle
+    double t = 1.0;
+    bool accepted = false;
+    for (int k = 0; k < 50 && !accepted; ++k, t *= 0.5) {
+      const double a = t * step.norm();
+      const Eigen::Vector3d v = E * (t * step);
+      const Eigen::Vector3d next = (std::cos(a) * u + std::sin(a) / a * v).normalized();
+      const double fn = f.value(next);
+      if (fn <= value + 1e-4 * t * slope && (slope < 0.0 || fn < value)) {
+        u = next;
+        value = fn;
+        accepted = true;
+      }
+    }
+    if (!accepted || t * step.norm() <= 1e-15) break;  // t was halved once past the step taken
+  }
+  return u;
+}
+
+}  // namespace
+
+namespace {
+
+// Newton on the sphere for a tip held to a line (f.set.free), from u_R, u_start, u_extra,
+// the stylus normal to the line and the directions that put the tip on it; the best end
+Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
+                           const Eigen::Vector3d& u_extra) noexcept {
+  Eigen::Vector3d starts[6];
+  int count = 0;
+  auto add = [&](const Eigen::Vector3d& v) {
+    const double n = v.norm();
+    if (!(n > 0.0) || !std::isfinite(n)) return;
+    const Eigen::Vector3d s = v / n;
+    if (s.dot(f.u_R) < -1.0 + 1e-12) return;  // the rotation term's gradient is undefined there
+    for (int i = 0; i < count; ++i) {
+      if ((starts[i] - s).norm() < 1e-9) return;
+    }
+    starts[count++] = s;
+  };
+  add(f.u_R);
+  add(u_start);
+  add(u_extra);
+  bool lifted;
+  const Eigen::Vector3d w = f.set.residual(f.p_R, lifted);  // p_R - c0, c0 its nearest point
+  add(w);
+  // the sphere of radius L about the handle cut by the line: c0 + tau e, |w - tau e| = L
+  const Eigen::Vector3d& e = f.set.free;
+  const double we = w.dot(e), disc = we * we - w.squaredNorm() + f.L * f.L;
+  if (disc >= 0.0) {
+    add(w - (we - std::sqrt(disc)) * e);
+    add(w - (we + std::sqrt(disc)) * e);
+  }
+  Eigen::Vector3d best = f.u_R;
+  double best_value = f.value(f.u_R);
+  for (int i = 0; i < count; ++i) {
+    double value;
+    const Eigen::Vector3d u = sphere_newton(f, starts[i], value);
+    if (value < best_value) {
+      best_value = value;
+      best = u;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+namespace {
+
+// the stylus's direction u for a tip held to a plane through `point` with normal n, the
+// tip in the plane (one angle: the Probe's), or to `point` itself (n = 0: one angle about
+// the handle's direction from the point)
+Eigen::Vector3d tilt_to_plane_or_point(const Eigen::Vector3d& point, const Eigen::Vector3d& n,
+                                       const Eigen::Vector3d& p_R, double length,
+                                       const Eigen::Matrix3d& R_R, const Eigen::Vector3d& hint,
+                                       double w_p, double w_r) noexcept {
+  TiltCost cost;
+  Eigen::Vector3d axis = n;
+  if (n.isZero(0.0)) {
+    // |v - L u|^2 = r^2 + L^2 - 2 L r cos(angle(u, v)), v = p_R - point
+    const Eigen::Vector3d v = p_R - point;
+    const double r = v.norm();
+    if (!(r > 1e-12 * length)) return -R_R.col(2);  // any direction: the handle's own
+    axis = v / r;
+    cost.p1 = -2.0 * length * r;
+  } else {
+    // tip height d - L cos(phi), phi the stylus's angle from n
+    const double d = n.dot(p_R - point);
+    cost.p2 = length * length;
+    cost.p1 = -2.0 * d * length;
+  }
+  Eigen::Matrix3d R;
+  tilt_about_axis(R_R, axis, cost, w_p, w_r, hint, R);
+  return -R.col(2);
+}
+
+}  // namespace
+
+Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, double length,
+                                 const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u_start,
+                                 double w_p, double w_r) noexcept {
+  const Eigen::Vector3d u_R = -R_R.col(2);
+  if (w_p == 0.0) return u_R;
+  const bool has_free = !set.free.isZero(0.0), one_sided = !set.one_sided.isZero(0.0);
+  if (!has_free && !one_sided) {  // a point: one angle
+    return tilt_to_plane_or_point(set.point, Eigen::Vector3d::Zero(), p_R, length, R_R, u_start,
+                                  w_p, w_r);
+  }
+  const StylusCost f{set, p_R, u_R, length, w_p, w_r};
+  if (!one_sided) return multistart(f, u_start, u_R);  // a line
+  // One-sided (a half-line or a half-plane). The relaxed problem, the one-sided direction
+  // made free (a line; a plane: one angle), has a cost nowhere above this one's (a superset
+  // is nearer), so where its optimum has the tip on the allowed side (the costs agree
+  // there) that optimum is this problem's too. That covers most lifted tips, where a
+  // half-plane's cost has a flat valley Newton would crawl along. Otherwise Newton on this
+  // cost from: the relaxed optimum, the optimum with the tip held to the edge (the point;
+  // the line), and for a half-line the directions that put the tip on it (the relaxed
+  // line's other local minimum may lie on the allowed side; a plane's valley has one).
+  const Eigen::Vector3d& o = set.one_sided;
+  Eigen::Vector3d starts[4];
+  int count = 0;
+  TipSet edge = set;
+  edge.one_sided.setZero();
+  if (has_free) {
+    starts[count++] = tilt_to_plane_or_point(set.point, set.free.cross(o), p_R, length, R_R,
+                                             u_start, w_p, w_r);
+    if (o.dot(p_R - length * starts[0] - set.point) >= 0.0) return starts[0];
+    starts[count++] =
+        multistart(StylusCost{edge, p_R, u_R, length, w_p, w_r}, u_start, starts[0]);
+  } else {
+    TipSet relaxed = set;
+    relaxed.free = o;
+    relaxed.one_sided.setZero();
+    starts[count++] = multistart(StylusCost{relaxed, p_R, u_R, length, w_p, w_r}, u_start, u_R);
+    if (o.dot(p_R - length * starts[0] - set.point) >= 0.0) return starts[0];
+    starts[count++] = tilt_to_plane_or_point(set.point, Eigen::Vector3d::Zero(), p_R, length,
+                                             R_R, u_start, w_p, w_r);
+    const Eigen::Vector3d v = p_R - set.point;
+    const double lambda0 = o.dot(v), disc = length * length - (v - lambda0 * o).squaredNorm();
+    for (double sign : {-1.0, 1.0}) {
+      const double tau = sign * std::sqrt(std::max(disc, 0.0));  // tip at lambda0 + tau
+      if (disc >= 0.0 && lambda0 + tau >= 0.0) starts[count++] = (v - (lambda0 + tau) * o) / length;
+    }
+  }
+  Eigen::Vector3d best = starts[0];
+  double best_value = f.value(best);
+  for (int i = 0; i < count; ++i) {
+    double value;
+    const Eigen::Vector3d u = sphere_newton(f, starts[i], value);
+    if (value < best_value) {
+      best_value = value;
+      best = u;
+    }
+  }
+  return best;
+}
+
 double arc_minimiser(double a, double theta_p, double b, double theta_o, double c,
                      double w_r) noexcept {
   // f(x) = -a cos(x - theta_p) + w_r acos(y)^2, y = c + b cos(x - theta_o); both terms grow
@@ -134,10 +395,8 @@ double arc_minimiser(double a, double theta_p, double b, double theta_o, double 
         const double so = std::sin(x - theta_o), co = std::cos(x - theta_o);
         const double y = std::min(1.0, std::max(-1.0, c + b * co));
         const double s1 = std::sqrt(std::max(0.0, 1.0 - y * y));  // sin of the angle
-        const double ang = std::atan2(s1, y);
-        // d acos(y)^2 / dy = -2 ang / s1 (-> -2 as ang -> 0), written h = ang / s1
-        const double h = ang > 1e-8 ? ang / s1 : 1.0 + ang * ang / 6.0;
-        const double dh = ang > 1e-4 ? (ang * y - s1) / (s1 * s1 * s1) : -1.0 / 3.0;
+        double ang, h, dh;
+        acos_squared_terms(y, s1, ang, h, dh);
         const double y1 = -b * so, y2 = -b * co;
         const double dfx = a * sp - 2.0 * w_r * h * y1;
         const double ddfx = a * cp - 2.0 * w_r * (dh * y1 * y1 + h * y2);

@@ -37,6 +37,34 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
                      const TiltCost& cost, double w_p, double w_r, const Eigen::Vector3d& hint,
                      Eigen::Matrix3d& R) noexcept;
 
+/// The handle orientation R_R turned by the least rotation that takes its stylus's tip-to-
+/// handle direction -R_R z to the unit vector u (about u_R x u; a half turn about any axis
+/// orthogonal to u_R where u = -u_R).
+Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u) noexcept;
+
+/// The set a stylus's tip is held to: point + s * free + lambda * one_sided, s any, lambda
+/// >= 0; either direction zero when absent (unit and orthogonal otherwise): a point, a line,
+/// a half-line or a half-plane.
+struct TipSet {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  Eigen::Vector3d free = Eigen::Vector3d::Zero();
+  Eigen::Vector3d one_sided = Eigen::Vector3d::Zero();
+  /// q's offset from its nearest point of the set; `lifted`: lambda > 0 there.
+  Eigen::Vector3d residual(const Eigen::Vector3d& q, bool& lifted) const noexcept;
+};
+
+/// The stylus's tip-to-handle direction u minimising
+///   w_p dist(p_R - L u, set)^2 + w_r angle(u, u_R)^2
+/// over the unit sphere, u_R = -R_R z the handle's own: the roll about the stylus and the
+/// tip's position in the set drop out exactly, and the remaining two angles are solved by
+/// Newton's method on the sphere with exact derivatives from u_R, `u_start` and the
+/// directions that put the tip on the set, keeping the best. A one-sided set is first
+/// solved relaxed (the direction made free: in closed form for a plane), which is exact
+/// wherever the tip is lifted (docs/theory.md, section 4).
+Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, double length,
+                                 const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u_start,
+                                 double w_p, double w_r) noexcept;
+
 /// The angle x minimising -a cos(x - theta_p) + w_r acos(c + b cos(x - theta_o))^2 (a, b,
 /// w_r >= 0): a position term least at theta_p and a rotation angle least at theta_o, as
 /// for one revolute joint with weights isotropic per block. On the short arc between them.

@@ -270,22 +270,64 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
   return true;
 }
 
+namespace {
+
+// The weighted optimum of a stylus whose tip is held to `set` (weights w_p, w_r): the
+// handle orientation R and the tip's offsets along the set's free and one-sided directions.
+// `wrist` indexes the start's first wrist angle.
+void place_on_tip_set(const detail::TipSet& set, double length, const Eigen::Matrix3d& B,
+                      const Pose& target, double w_p, double w_r, const JointVector& start,
+                      int wrist, Eigen::Matrix3d& R, double& along, double& lift) noexcept {
+  const Eigen::Vector3d u =
+      detail::stylus_direction(set, target.translation(), length, target.linear(),
+                               wrist_direction(B, start.data() + wrist), w_p, w_r);
+  R = detail::turn_stylus(target.linear(), u);
+  const Eigen::Vector3d q = target.translation() - length * u - set.point;
+  along = set.free.dot(q);
+  // in contact the tip sits exactly on the set, the lift-off joint on its bound
+  lift = set.one_sided.dot(q);
+  if (!(lift > 1e-12 * length)) lift = 0.0;
+}
+
+}  // namespace
+
 bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& start,
                        JointVector& theta) const noexcept {
   double w_p, w_r;
-  if (unilateral_ || !detail::isotropic_blocks(w, w_p, w_r)) return false;
+  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+  // the tip at the point, or on the half-line point + lambda normal, lambda >= 0
   const Eigen::Matrix3d B = tip_base(normal_, tangent_);
-  const Eigen::Vector3d v = target.translation() - point_;
-  const double r = v.norm();  // |handle - tip| [m]
-  Eigen::Matrix3d R = target.linear();
-  if (r > 1e-12 * length_) {
-    detail::TiltCost cost;  // |v - L u|^2 = r^2 + L^2 - 2 L r cos(angle(u, v))
-    cost.p1 = -2.0 * length_ * r;
-    detail::tilt_about_axis(target.linear(), v / r, cost, w_p, w_r,
-                            wrist_direction(B, start.data()), R);
-  }
-  theta.resize(3);
-  theta = wrist_angles(B, R, start.data());
+  detail::TipSet set;
+  set.point = point_;
+  if (unilateral_) set.one_sided = normal_;
+  const int wrist = unilateral_ ? 1 : 0;
+  Eigen::Matrix3d R;
+  double along, lift;
+  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, along, lift);
+  theta.resize(dof());
+  if (unilateral_) theta[0] = lift;
+  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
+  return true;
+}
+
+bool LineGuide::place(const Pose& target, const Vector6& w, const JointVector& start,
+                      JointVector& theta) const noexcept {
+  double w_p, w_r;
+  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+  // the tip on the line, or on the half-plane line + lambda normal, lambda >= 0
+  const Eigen::Matrix3d B = tip_base(normal_, direction_);
+  detail::TipSet set;
+  set.point = point_;
+  set.free = direction_;
+  if (unilateral_) set.one_sided = normal_;
+  const int wrist = unilateral_ ? 2 : 1;
+  Eigen::Matrix3d R;
+  double along, lift;
+  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, along, lift);
+  theta.resize(dof());
+  theta[0] = along;
+  if (unilateral_) theta[1] = lift;
+  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
   return true;
 }
 

@@ -105,7 +105,17 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
   JointVector delta(n), trial(n), extrapolated(n);
 
   for (int it = 0; it < options.max_iterations; ++it) {
-    if (ev.g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
+    // joints on a bound the cost pushes against stay there (projected Gauss-Newton: their
+    // gradient entries and columns leave the step, so the others' step is the constrained
+    // problem's, not an unconstrained one clipped)
+    std::uint32_t upper;
+    const std::uint32_t locked = active_set(mechanism, theta, ev.g, upper);
+    JointVector& g_free = trial;  // scratch until the step is taken
+    g_free = ev.g;
+    for (int i = 0; i < n; ++i) {
+      if (locked & (1u << i)) g_free[i] = 0.0;
+    }
+    if (g_free.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
       result.converged = true;
       break;
     }
@@ -114,12 +124,18 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     const Jacobian WJ = weights.asDiagonal() * ev.J;
     H.noalias() = ev.J.transpose() * WJ;
     H.diagonal().array() += options.damping * (H.trace() / n) + 1e-300;
+    for (int i = 0; i < n; ++i) {
+      if (!(locked & (1u << i))) continue;
+      H.row(i).setZero();
+      H.col(i).setZero();
+      H(i, i) = 1.0;
+    }
     L = H;
-    delta = ev.g;
+    delta = g_free;
     if (detail::cholesky_in_place(L)) {
       detail::cholesky_solve_in_place(L, delta);
     } else {
-      delta = Eigen::LLT<JointMatrix>(H).solve(ev.g);  // not positive definite (NaN, ...)
+      delta = Eigen::LLT<JointMatrix>(H).solve(g_free);  // not positive definite (NaN, ...)
     }
     double scale = 1.0;
     for (int i = 0; i < n; ++i) {
@@ -128,7 +144,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     }
     delta *= scale;
     result.iterations = it + 1;
-    const double slope0 = ev.g.dot(delta);  // > 0: delta descends the weighted cost
+    const double slope0 = g_free.dot(delta);  // > 0: delta descends the weighted cost
 
     if (scale == 1.0 && delta.cwiseQuotient(step_cap).cwiseAbs().maxCoeff() < 1e-4) {
       // near the solution cost differences are at rounding level: take the step, then go
@@ -181,10 +197,14 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
       break;
     }
   }
-  if (!result.converged && ev.g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
-    result.converged = true;
-  }
   result.active = active_set(mechanism, theta, ev.g, result.active_upper);
+  if (!result.converged) {
+    trial = ev.g;  // the projected gradient
+    for (int i = 0; i < n; ++i) {
+      if (result.active & (1u << i)) trial[i] = 0.0;
+    }
+    result.converged = trial.cwiseAbs().maxCoeff() <= options.gradient_tolerance;
+  }
   result.residual = std::sqrt(std::max(ev.cost, 0.0));
   pose = ev.T;  // ev is always the evaluation at theta
   J = ev.J;

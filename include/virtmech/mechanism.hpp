@@ -145,7 +145,8 @@ class PointPivot final : public ChainMechanism {
   const Eigen::Vector3d& tangent() const noexcept { return tangent_; }
   double length() const noexcept { return length_; }
   bool unilateral() const noexcept { return unilateral_; }
-  /// Closed form for weights isotropic within position and within rotation, bilateral only.
+  /// Closed form for weights isotropic within position and within rotation (bilateral: one
+  /// scalar solve; unilateral: one solve in the stylus's two tilt angles).
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta) const noexcept override;
 
@@ -168,6 +169,11 @@ class LineGuide final : public ChainMechanism {
   const Eigen::Vector3d& normal() const noexcept { return normal_; }
   double length() const noexcept { return length_; }
   bool unilateral() const noexcept { return unilateral_; }
+  /// Closed form for weights isotropic within position and within rotation: the tip's
+  /// position and the roll about the stylus drop out exactly, one solve in the stylus's two
+  /// tilt angles remains.
+  bool place(const Pose& target, const Vector6& w, const JointVector& start,
+             JointVector& theta) const noexcept override;
 
  private:
   Eigen::Vector3d point_, direction_, normal_;
