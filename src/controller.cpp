@@ -30,6 +30,8 @@ Vector6 checked_weights(const std::string& name, const Vector6& w) {
 // extrapolates
 constexpr double kWarmStartFraction = 0.1;
 
+constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
+
 // The warm start of a placement: theta moved on by its last change, when that change is
 // the smooth motion of one cycle (within a tenth of the solver's step cap per joint); after
 // a jump (a branch switch, a glitch) extrapolating would start far off, so theta itself.
@@ -113,6 +115,20 @@ ControllerModel make_controller_model(const Device& device, const Mechanism& mec
     throw std::invalid_argument("error_velocity: expected relative or handle");
   }
   m.error_velocity = s.error_velocity;
+  // W_A = c (W_e + secondary_weight U): every ratio within a few rounding errors of one c
+  double c = 0.0;
+  bool proportional = true;
+  for (int i = 0; i < 6; ++i) {
+    const double a = m.w_a[i], e = m.w_e_effective[i];
+    if (a == 0.0 || e == 0.0) {
+      proportional = proportional && a == e;
+    } else if (c == 0.0) {
+      c = a / e;
+    } else {
+      proportional = proportional && std::abs(a - c * e) <= 8.0 * kEpsilon * a;
+    }
+  }
+  m.w_a_shares_rate = proportional && m.error_velocity == ErrorVelocity::kRelative;
 
   require_positive("period_s", s.period_s);
   require_non_negative("ramp_time_s", s.ramp_time_s);
@@ -227,18 +243,39 @@ void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
 }
 
 // e_dot: the part of the handle's twist the placement does not follow, through the locked
-// Jacobian (docs/theory.md, 3); or the paper's eq. 10.
+// Jacobian (docs/theory.md, 3); or the paper's eq. 10. `proj` holds sqrt(W) J_free when
+// `factorised`, else is factorised here.
 void error_rate(const ControllerModel& M, const Placement& p, const Vector6& W,
-                const Vector6& v_R, WeightedProjector& proj, Vector6& e_dot) noexcept {
+                const Vector6& v_R, bool factorised, WeightedProjector& proj,
+                Vector6& e_dot) noexcept {
   if (M.error_velocity == ErrorVelocity::kHandle) {
     e_dot = -v_R;  // eq. 10
     return;
   }
-  proj.compute(p.J_free, W);
+  if (!factorised) proj.compute(p.J_free, W);
   JointVector theta_dot;
   proj.fit(v_R, theta_dot);  // (J^T W J)^+ J^T W v_R
   e_dot.noalias() = p.J_free * theta_dot;
   e_dot -= v_R;
+}
+
+// The factorisations the terms' first pass needs, all at once (WeightedProjector::
+// compute_all overlaps them): the nearest placement's rate and P(W_A) there, the un-powered
+// placement's rate. A pass that releases a limit factorises again.
+void factorise_first_pass(const ControllerModel& M, ControllerData& d) noexcept {
+  WeightedProjector::Job jobs[3];
+  int n = 0;
+  const bool rates = M.error_velocity == ErrorVelocity::kRelative;
+  if (rates) {
+    // with W_A a multiple of W_e the rate's factorisation is P(W_A)'s
+    WeightedProjector* rate = M.w_a_shares_rate ? &d.projector_a : &d.rate;
+    jobs[n++] = {rate, &d.nearest.J_free, &M.w_e_effective};
+  }
+  if (!M.w_a_shares_rate) jobs[n++] = {&d.projector_a, &d.nearest.J_free, &M.w_a};
+  if (rates && M.under_actuated_term) {
+    jobs[n++] = {&d.rate_star, &d.unpowered.J_free, &M.w_e_star_effective};
+  }
+  WeightedProjector::compute_all(jobs, n);
 }
 
 // A limit pushes and never pulls: joints of `active` whose motion the wrench f drives back
@@ -266,10 +303,11 @@ void null_space_term(const ControllerModel& M, const Mechanism& mech, Controller
                      CycleOutput& out) noexcept {
   Placement& p = d.nearest;
   out.error = pose_error(p.pose, d.handle_pose);  // e = X_V - X_R (eq. 22)
+  WeightedProjector& rate = M.w_a_shares_rate ? d.projector_a : d.rate;
   for (int pass = 0; pass < 2; ++pass) {
-    error_rate(M, p, M.w_e_effective, d.v_R, d.projector, out.error_dot);
+    error_rate(M, p, M.w_e_effective, d.v_R, pass == 0, rate, out.error_dot);
     const Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);
-    d.projector_a.compute(p.J_free, M.w_a);
+    if (pass > 0 && !M.w_a_shares_rate) d.projector_a.compute(p.J_free, M.w_a);
     out.wrench_null = d.projector_a.null(F);
     const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_null) : 0u;
     if (!pull) break;
@@ -287,17 +325,19 @@ void range_space_term(const ControllerModel& M, const Mechanism& mech, Controlle
                       CycleOutput& out) noexcept {
   Placement& p = d.unpowered;
   out.error_star = pose_error(p.pose, d.handle_pose);
+  // P(W_A) at the nearest placement, every column: the null term's when none is locked.
+  // Neither it nor the un-powered placement's J (every column) changes between the passes.
+  if (d.nearest.active) d.projector_a.compute(d.nearest.J, M.w_a);
+  const WeightedProjector* P = &d.projector_a;
+  if (P->rank() < std::min(M.w_a_support, mech.dof())) {
+    d.projector.compute(p.J, M.w_a);
+    if (d.projector.rank() > P->rank()) P = &d.projector;
+  }
   std::uint32_t released = 0;
   for (int pass = 0; pass < 2; ++pass) {
-    error_rate(M, p, M.w_e_star_effective, d.v_R, d.projector, out.error_star_dot);
+    error_rate(M, p, M.w_e_star_effective, d.v_R, pass == 0, d.rate_star,
+               out.error_star_dot);
     const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
-    // P(W_A) at the nearest placement, every column: the null term's when none is locked
-    if (d.nearest.active) d.projector_a.compute(d.nearest.J, M.w_a);
-    const WeightedProjector* P = &d.projector_a;
-    if (P->rank() < std::min(M.w_a_support, mech.dof())) {
-      d.projector.compute(p.J, M.w_a);
-      if (d.projector.rank() > P->rank()) P = &d.projector;
-    }
     out.wrench_range = P->range(F);
     if (pass == 1) {
       // a released limit lets go: no force along its joint's motion, as the null-space
@@ -472,6 +512,7 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   d.first = false;
 
   // eq. 26 (eq. 11 without the range term)
+  factorise_first_pass(M, d);
   null_space_term(M, mech, d, out);
   if (M.under_actuated_term) range_space_term(M, mech, d, out);
   Vector6 f = out.wrench_null + out.wrench_range;

@@ -131,6 +131,18 @@ SerialDevice::SerialDevice(std::string name, const KinematicChain& chain,
   require_finite("coupling", Eigen::Map<const Eigen::VectorXd>(coupling_.data(), n * n));
   require_finite("coupling_offset", coupling_offset_);
   coupled_ = !(coupling_.isIdentity(0.0) && coupling_offset_.isZero(0.0));
+  // C's non-zero entries, column by column (compressed sparse columns)
+  int k = 0;
+  for (int j = 0; j < n; ++j) {
+    coupling_start_[static_cast<size_t>(j)] = k;
+    for (int i = 0; i < n; ++i) {
+      if (coupling_(i, j) == 0.0) continue;
+      coupling_row_[static_cast<size_t>(k)] = i;
+      coupling_value_[static_cast<size_t>(k)] = coupling_(i, j);
+      ++k;
+    }
+  }
+  coupling_start_[static_cast<size_t>(n)] = k;
 }
 
 void SerialDevice::forward(const double* q, Pose& T) const noexcept {
@@ -138,9 +150,8 @@ void SerialDevice::forward(const double* q, Pose& T) const noexcept {
     chain_.forward(q, T);
     return;
   }
-  const Eigen::Map<const JointVector> qv(q, dof());
-  JointVector s = coupling_offset_;
-  s.noalias() += coupling_ * qv;
+  JointVector s;
+  to_serial(q, s);
   chain_.forward(s.data(), T);
 }
 
@@ -149,15 +160,36 @@ void SerialDevice::forward_jacobian(const double* q, Pose& T, Jacobian& J) const
     chain_.forward_jacobian(q, T, J);
     return;
   }
-  const Eigen::Map<const JointVector> qv(q, dof());
-  JointVector s = coupling_offset_;
-  s.noalias() += coupling_ * qv;
+  JointVector s;
+  to_serial(q, s);
   Jacobian Js;
   chain_.forward_jacobian(s.data(), T, Js);
-  J.resize(6, dof());
-  J.noalias() = Js * coupling_;
+  // J = Js C over C's non-zero entries only (C is mostly a permutation-like sparse matrix:
+  // the Omni's has 7 of 36), the same sums as the dense product without its zero terms
+  const int n = dof();
+  J.resize(6, n);
+  for (int j = 0; j < n; ++j) {
+    const size_t b = static_cast<size_t>(coupling_start_[static_cast<size_t>(j)]);
+    const size_t e = static_cast<size_t>(coupling_start_[static_cast<size_t>(j) + 1]);
+    if (b == e) {
+      J.col(j).setZero();
+      continue;
+    }
+    J.col(j) = coupling_value_[b] * Js.col(coupling_row_[b]);
+    for (size_t k = b + 1; k < e; ++k) J.col(j) += coupling_value_[k] * Js.col(coupling_row_[k]);
+  }
 }
 
+// s = C q + c0 over C's non-zero entries
+void SerialDevice::to_serial(const double* q, JointVector& s) const noexcept {
+  const int n = dof();
+  s = coupling_offset_;
+  for (int j = 0; j < n; ++j) {
+    const size_t b = static_cast<size_t>(coupling_start_[static_cast<size_t>(j)]);
+    const size_t e = static_cast<size_t>(coupling_start_[static_cast<size_t>(j) + 1]);
+    for (size_t k = b; k < e; ++k) s[coupling_row_[k]] += coupling_value_[k] * q[j];
+  }
+}
 
 
 namespace {

@@ -20,26 +20,40 @@ constexpr double kWeightRoundoff = 64.0 * std::numeric_limits<double>::epsilon()
 // only when rank < m) and not an SVD: on 6 x m it is backward stable like the SVD, its
 // pivots |R_kk| reveal the rank well enough for a 1e-10 cut (a Probe near its singular pose
 // gives ~1e-6, repeated columns ~1e-16), and it costs a fraction of a JacobiSVD. It is
-// written out as loops (the algorithm of Eigen's CompleteOrthogonalDecomposition, column
-// norms recomputed rather than downdated): Eigen's general code takes ~1.7x as long at
-// these sizes, and its Z products take dynamic-size temporaries.
+// written out for the fixed height 6 (the algorithm of Eigen's
+// CompleteOrthogonalDecomposition, column norms recomputed rather than downdated): Q's
+// reflectors are kept at full length with zeros above their pivot row, so every column
+// operation is one fixed-size 6-vector operation the compiler unrolls and vectorises (the
+// zeros add exact zeros); Eigen's general code takes several times as long at these sizes.
 
 WeightedProjector::WeightedProjector() noexcept
-    : qr_(6, 0), tau_(Vector6::Zero()), ztau_(Vector6::Zero()), perm_{}, J_(6, 0),
-      s_(Vector6::Zero()), s_inv_(Vector6::Zero()), free_(Vector6::Ones()),
-      V_(Matrix6::Identity()) {}
+    : a_(Columns::Zero()), q_(Matrix6::Zero()), tau_(Vector6::Zero()), ztau_(Vector6::Zero()),
+      perm_{}, J_(Columns::Zero()),
+      w_(Vector6::Constant(std::numeric_limits<double>::quiet_NaN())), s_(Vector6::Zero()),
+      s_inv_(Vector6::Zero()), free_(Vector6::Ones()), V_(Matrix6::Identity()) {}
 
 void WeightedProjector::compute(const Jacobian& J, const Vector6& w) noexcept {
+  const Job job{this, &J, &w};
+  compute_all(&job, 1);
+}
+
+void WeightedProjector::set(const Jacobian& J, const Vector6& w) noexcept {
   rotated_ = false;
-  J_ = J;
-  for (int i = 0; i < 6; ++i) {
-    const bool on = w[i] > 0.0;  // false for NaN too
-    s_[i] = on ? std::sqrt(w[i]) : 0.0;
-    s_inv_[i] = on ? 1.0 / s_[i] : 0.0;
-    free_[i] = on ? 0.0 : 1.0;
+  m_ = static_cast<int>(J.cols());
+  for (int j = 0; j < m_; ++j) J_.col(j) = J.col(j);
+  // a projector is mostly refactorised with the same weights (the controller keeps one per
+  // weighting): their square roots are derived once (NaN weights never compare equal)
+  if (!(w.array() == w_.array()).all()) {
+    for (int i = 0; i < 6; ++i) {
+      const bool on = w[i] > 0.0;  // false for NaN too
+      s_[i] = on ? std::sqrt(w[i]) : 0.0;
+      s_inv_[i] = on ? 1.0 / s_[i] : 0.0;
+      free_[i] = on ? 0.0 : 1.0;
+    }
+    w_ = w;
+    w_finite_ = w.allFinite();
   }
-  finite_ = w.allFinite();
-  factorise();
+  finite_ = w_finite_;
 }
 
 void WeightedProjector::compute(const Jacobian& J, const Matrix6& W) noexcept {
@@ -78,8 +92,19 @@ void WeightedProjector::compute(const Jacobian& J, const Matrix6& W) noexcept {
 
 namespace {
 
+// kFrom[k]: 1 in rows k..5, 0 above; multiplying by it keeps the rows from k on
+alignas(16) constexpr double kFrom[7][6] = {{1, 1, 1, 1, 1, 1}, {0, 1, 1, 1, 1, 1},
+                                            {0, 0, 1, 1, 1, 1}, {0, 0, 0, 1, 1, 1},
+                                            {0, 0, 0, 0, 1, 1}, {0, 0, 0, 0, 0, 1},
+                                            {0, 0, 0, 0, 0, 0}};
+
+inline Eigen::Map<const Vector6, Eigen::Aligned16> rows_from(int k) noexcept {
+  return Eigen::Map<const Vector6, Eigen::Aligned16>(kFrom[k]);
+}
+
 // Householder reflector H = I - tau [1; v] [1; v]^T with H [x0; x] = [beta; 0] (Eigen's
-// makeHouseholder): x is overwritten with v, x0 with beta.
+// makeHouseholder), for the short row vectors of the RZ step: x is overwritten with v, x0
+// with beta.
 inline double make_reflector(double& x0, double* x, int stride, int n) noexcept {
   double tail = 0.0;
   for (int i = 0; i < n; ++i) tail += x[i * stride] * x[i * stride];
@@ -106,16 +131,19 @@ inline void reflect(double tau, const double* v, int vstride, double& y0, double
   for (int i = 0; i < n; ++i) y[i * ystride] -= d * v[i * vstride];
 }
 
-// g <- H_{r-1} ... H_0 g = Q^T g (its first r entries are Q1^T g); a as in factorise().
-inline void apply_qt(const double* a, const Vector6& tau, int r, Vector6& g) noexcept {
-  for (int k = 0; k < r; ++k)
-    reflect(tau[k], a + (k + 1) + 6 * k, 1, g[k], g.data() + k + 1, 1, 5 - k);
+// g <- H_k g for Q's full-length reflector k
+inline void apply_reflector(const Matrix6& q, const Vector6& tau, int k, Vector6& g) noexcept {
+  g -= (tau[k] * q.col(k).dot(g)) * q.col(k);
+}
+
+// g <- H_{r-1} ... H_0 g = Q^T g (its first r entries are Q1^T g).
+inline void apply_qt(const Matrix6& q, const Vector6& tau, int r, Vector6& g) noexcept {
+  for (int k = 0; k < r; ++k) apply_reflector(q, tau, k, g);
 }
 
 // g <- H_0 ... H_{r-1} g = Q g.
-inline void apply_q(const double* a, const Vector6& tau, int r, Vector6& g) noexcept {
-  for (int k = r - 1; k >= 0; --k)
-    reflect(tau[k], a + (k + 1) + 6 * k, 1, g[k], g.data() + k + 1, 1, 5 - k);
+inline void apply_q(const Matrix6& q, const Vector6& tau, int r, Vector6& g) noexcept {
+  for (int k = r - 1; k >= 0; --k) apply_reflector(q, tau, k, g);
 }
 
 }  // namespace
@@ -127,41 +155,107 @@ inline void apply_q(const double* a, const Vector6& tau, int r, Vector6& g) noex
 // Both are S (A^+)^T J^T x. The split one keeps the orthogonal part of P (S Q1 Q1^T S^+)
 // to rounding times kappa(S) instead of kappa(A); the direct one is better only when the
 // weights spread more than sqrt(W) J is ill-conditioned.
-void WeightedProjector::factorise() noexcept {
-  const int m = static_cast<int>(J_.cols());
+void WeightedProjector::compute_all(const Job* jobs, int count) noexcept {
+  constexpr int kMaxJobs = 4;  // at a time
+  if (count > kMaxJobs) {
+    compute_all(jobs + kMaxJobs, count - kMaxJobs);
+    count = kMaxJobs;
+  }
+  int steps[kMaxJobs];
+  for (int i = 0; i < count; ++i) {
+    WeightedProjector& p = *jobs[i].projector;
+    p.set(*jobs[i].J, *jobs[i].w);
+    steps[i] = p.start_factorisation();
+  }
+  // step k of every factorisation before step k + 1 of any: the steps of different
+  // factorisations are independent, so their latencies overlap
+  for (int k = 0; k < 6; ++k) {
+    bool any = false;
+    for (int i = 0; i < count; ++i) {
+      if (k < steps[i] && !jobs[i].projector->pivot_step(k)) steps[i] = k;
+      any = any || k + 1 < steps[i];
+    }
+    if (!any) break;
+  }
+  for (int i = 0; i < count; ++i) jobs[i].projector->finish_factorisation();
+}
+
+// A = S J, its column norms; the number of pivot steps to try (0 if not finite)
+int WeightedProjector::start_factorisation() noexcept {
+  const int m = m_;
   rank_ = 0;
   split_ = true;
-  qr_.noalias() = s_.asDiagonal() * J_;
-  finite_ = finite_ && qr_.allFinite();
-  if (!finite_) return;
-  double* a = qr_.data();  // column-major, 6 rows
-  for (int j = 0; j < m; ++j) perm_[j] = j;
-  // Q: H_{k-1} ... H_0 A Pi = [R11 R12; 0 R22], column pivoting, stopped once the largest
-  // remaining column (|R_kk| to come) is at most kPinvTolerance |R_00|: R22 counts as 0
-  const int steps = std::min(6, m);
-  double cut = 0.0;  // (kPinvTolerance |R_00|)^2
-  for (int k = 0; k < steps; ++k) {
-    int p = k;
-    double best = -1.0;  // the largest squared column norm, |R_kk|^2 to come
-    for (int j = k; j < m; ++j) {
-      double n2 = 0.0;
-      for (int i = k; i < 6; ++i) n2 += a[i + 6 * j] * a[i + 6 * j];
-      if (n2 > best) best = n2, p = j;
-    }
-    if (k == 0) cut = kPinvTolerance * kPinvTolerance * best;
-    if (!(best > cut)) break;  // also |R_00| = 0
-    if (p != k) {
-      for (int i = 0; i < 6; ++i) std::swap(a[i + 6 * k], a[i + 6 * p]);
-      std::swap(perm_[k], perm_[p]);
-    }
-    double* v = a + (k + 1) + 6 * k;
-    tau_[k] = make_reflector(a[k + 6 * k], v, 1, 5 - k);
-    for (int j = k + 1; j < m; ++j)
-      reflect(tau_[k], v, 1, a[k + 6 * j], a + (k + 1) + 6 * j, 1, 5 - k);
-    rank_ = k + 1;
+  bool finite = finite_;
+  for (int j = 0; j < m; ++j) {
+    a_.col(j) = s_.cwiseProduct(J_.col(j));
+    finite = finite && a_.col(j).allFinite();
   }
+  finite_ = finite;
+  if (!finite_) return 0;
+  for (int j = 0; j < m; ++j) perm_[j] = j;
+  // n2_[j]: squared norm of column j's rows k..5, recomputed as each step updates the column
+  for (int j = 0; j < m; ++j) n2_[j] = a_.col(j).squaredNorm();
+  cut_ = 0.0;
+  return std::min(6, m);
+}
+
+// Q: H_{k-1} ... H_0 A Pi = [R11 R12; 0 R22], column pivoting, stopped once the largest
+// remaining column (|R_kk| to come) is at most kPinvTolerance |R_00|: R22 counts as 0.
+// Step k; false when it stops.
+bool WeightedProjector::pivot_step(int k) noexcept {
+  const int m = m_;
+  double* n2 = n2_;
+  int p = k;
+  double best = n2[k];  // the largest squared column norm, |R_kk|^2 to come
+  for (int j = k + 1; j < m; ++j) {
+    if (n2[j] > best) best = n2[j], p = j;
+  }
+  if (k == 0) cut_ = kPinvTolerance * kPinvTolerance * best;  // (kPinvTolerance |R_00|)^2
+  if (!(best > cut_)) return false;  // also |R_00| = 0
+  if (p != k) {
+    a_.col(k).swap(a_.col(p));
+    std::swap(perm_[k], perm_[p]);
+    n2[p] = n2[k];
+  }
+  // H_k [x0; x] = [beta; 0] for column k's rows k..5 (Eigen's makeHouseholder), with
+  // x0^2 + |x|^2 = best. H_k = I - tau [1; v] [1; v]^T, v = scale x: the products x^T y of
+  // the columns y it updates do not wait for the square root and the division
+  const auto below_k = rows_from(k + 1);
+  const Vector6 x = a_.col(k).cwiseProduct(below_k);
+  double xy[kMaxDof];
+  for (int j = k + 1; j < m; ++j) xy[j] = x.dot(a_.col(j));
+  const double x0 = a_(k, k), tail = x.squaredNorm();
+  double scale = 0.0;
+  if (tail <= std::numeric_limits<double>::min()) {
+    tau_[k] = 0.0;  // H = I
+  } else {
+    const double beta = x0 >= 0.0 ? -std::sqrt(best) : std::sqrt(best);
+    const double u = beta - x0;
+    const double inv = 1.0 / (beta * u);  // one division: v = x / (x0 - beta), tau = u / beta
+    scale = -beta * inv;
+    tau_[k] = u * u * inv;
+    a_(k, k) = beta;
+  }
+  auto v = q_.col(k);
+  v = scale * x;
+  v[k] = 1.0;
+  a_.col(k) -= x;  // zeros below the diagonal
+  for (int j = k + 1; j < m; ++j) {
+    auto col = a_.col(j);
+    col -= (tau_[k] * (col[k] + scale * xy[j])) * v;  // H_k y, v^T y = y_k + scale x^T y
+    n2[j] = col.cwiseProduct(below_k).squaredNorm();
+  }
+  rank_ = k + 1;
+  return true;
+}
+
+// Z (only when r < m): [R11 R12] Z_{r-1} ... Z_0 = [T 0], Z_k acting on columns k, r..m-1;
+// then the choice of formula
+void WeightedProjector::finish_factorisation() noexcept {
+  if (!finite_) return;
+  const int m = m_;
   const int r = rank_;
-  // Z (only when r < m): [R11 R12] Z_{r-1} ... Z_0 = [T 0], Z_k acting on columns k, r..m-1
+  double* a = a_.data();  // column-major, 6 rows
   for (int k = r - 1; k >= 0 && r < m; --k) {
     double* z = a + k + 6 * r;  // row k, columns r..m-1 (stride 6)
     ztau_[k] = make_reflector(a[k + 6 * k], z, 6, m - r);
@@ -170,8 +264,8 @@ void WeightedProjector::factorise() noexcept {
   if (r == 0) return;
   double tmin = kInf, tmax = 0.0, smin = kInf, smax = 0.0;
   for (int i = 0; i < r; ++i) {
-    tmin = std::min(tmin, std::abs(a[i + 6 * i]));
-    tmax = std::max(tmax, std::abs(a[i + 6 * i]));
+    tmin = std::min(tmin, std::abs(a_(i, i)));
+    tmax = std::max(tmax, std::abs(a_(i, i)));
   }
   for (int i = 0; i < 6; ++i) {
     if (s_[i] > 0.0) {
@@ -186,15 +280,16 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
   if (!finite_) return Vector6::Constant(std::numeric_limits<double>::quiet_NaN());
   if (rank_ == 0) return Vector6::Zero();
   const Vector6 x = rotated_ ? Vector6(V_.transpose() * x_in) : x_in;
-  const int r = rank_, m = static_cast<int>(J_.cols());
-  const double* a = qr_.data();
+  const int r = rank_, m = m_;
+  const double* a = a_.data();
   Vector6 g = Vector6::Zero();
   Vector6 xj = x;  // the part of x that goes through J^T
   if (split_) {
     g = s_inv_.cwiseProduct(x);
-    apply_qt(a, tau_, r, g);
+    apply_qt(q_, tau_, r, g);
     xj = free_.cwiseProduct(x);
   }
+  g = g.cwiseProduct(Vector6::Ones() - rows_from(r));  // Q1^T: the first r entries
   if (!xj.isZero(0.0)) {
     double c[kMaxDof];
     for (int i = 0; i < m; ++i) c[i] = J_.col(perm_[i]).dot(xj);  // Pi^T J^T xj
@@ -207,8 +302,7 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
       g[i] += c[i];
     }
   }
-  g.tail(6 - r).setZero();
-  apply_q(a, tau_, r, g);
+  apply_q(q_, tau_, r, g);
   const Vector6 out = s_.cwiseProduct(g);  // exactly 0 on zero-weight rows
   return rotated_ ? Vector6(V_ * out) : out;
 }
@@ -216,14 +310,14 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
 Vector6 WeightedProjector::null(const Vector6& x) const noexcept { return x - range(x); }
 
 void WeightedProjector::fit(const Vector6& v, JointVector& theta_dot) const noexcept {
-  const int r = rank_, m = static_cast<int>(J_.cols());
+  const int r = rank_, m = m_;
   theta_dot.setZero(m);
   if (!finite_) theta_dot.setConstant(std::numeric_limits<double>::quiet_NaN());
   if (!finite_ || r == 0) return;
   // A^+ S v = Pi Z [T^-1 (Q^T S v)_{0:r}; 0]
-  const double* a = qr_.data();
+  const double* a = a_.data();
   Vector6 g = s_.cwiseProduct(rotated_ ? Vector6(V_.transpose() * v) : v);
-  apply_qt(a, tau_, r, g);
+  apply_qt(q_, tau_, r, g);
   double d[kMaxDof] = {};
   for (int i = r - 1; i >= 0; --i) {  // T d = g_{0:r}, back substitution
     double t = g[i];

@@ -85,6 +85,10 @@ struct ControllerModel {
   Vector6 w_e_effective;       //!< W_e + secondary_weight * U, as the solver uses it
   Vector6 w_e_star_effective;  //!< W_e* + secondary_weight * U
   int w_a_support = 0;         //!< task axes W_A weighs (> 0)
+  /// W_A is a multiple of W_e + secondary_weight * U (same zeros, ratios equal to rounding)
+  /// and the error velocity is kRelative: P(W_A) at the nearest placement is the projector
+  /// of its rate, factorised once (P(c W) = P(W)).
+  bool w_a_shares_rate = false;
   double length_scale = 0.1;
   ControlLaw law = ControlLaw::kAuto;
   bool under_actuated_term = false;  //!< eq. 26's range-space term is evaluated
@@ -142,8 +146,11 @@ struct ControllerData {
   Pose handle_pose = Pose::Identity();
   Jacobian J_R;     //!< device Jacobian at q
   Vector6 v_R;      //!< handle twist J_R dq
-  WeightedProjector projector;    //!< P(W) / N(W) for the rates and the renderable part
+  // one projector per weighting, so that each keeps its weights' square roots
+  WeightedProjector rate;         //!< sqrt(W_e) J_V at the nearest placement: its rate
+  WeightedProjector rate_star;    //!< sqrt(W_e*) J_V at the un-powered placement: its rate
   WeightedProjector projector_a;  //!< P(W_A) / N(W_A) at the nearest placement
+  WeightedProjector projector;    //!< P(W_A) at the un-powered placement; the renderable part
   bool first = true;            //!< next cycle starts placements afresh
   long ramp_count = 0;
   double last_t = std::numeric_limits<double>::quiet_NaN();

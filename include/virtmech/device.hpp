@@ -90,10 +90,17 @@ class SerialDevice : public Device {
   void forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept override;
 
  private:
+  void to_serial(const double* q, JointVector& s) const noexcept;
+
   KinematicChain chain_;
   JointMatrix coupling_;
   JointVector coupling_offset_;
   bool coupled_ = false;
+  // C's non-zero entries by column: column j's are coupling_row_ / coupling_value_
+  // [coupling_start_[j], coupling_start_[j + 1])
+  std::array<int, kMaxDof + 1> coupling_start_{};
+  std::array<int, kMaxDof * kMaxDof> coupling_row_{};
+  std::array<double, kMaxDof * kMaxDof> coupling_value_{};
 };
 
 /// Parameters of the PHANTOM Omni / Geomagic Touch model (defaults: ../shared/REFERENCE.md).

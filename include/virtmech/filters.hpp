@@ -41,22 +41,45 @@ class WeightedProjector {
   /// Numerical rank of sqrt(W) J.
   int rank() const noexcept { return rank_; }
 
- private:
-  void factorise() noexcept;
+  /// One compute(J, w) of several.
+  struct Job {
+    WeightedProjector* projector;
+    const Jacobian* J;
+    const Vector6* w;
+  };
+  /// jobs[i].projector->compute(*jobs[i].J, *jobs[i].w) for i < count, the factorisations
+  /// advanced step by step together (up to four at a time): each is a chain of dependent
+  /// square roots and divisions, and interleaved the processor overlaps them. Same results.
+  static void compute_all(const Job* jobs, int count) noexcept;
 
-  // A = diag(s_) J_ factorised in place: Q's reflectors below the diagonal, T on and above
-  // it (r x r), Z's reflectors in rows 0..r-1 right of column r
-  Jacobian qr_;
+ private:
+  void set(const Jacobian& J, const Vector6& w) noexcept;
+  int start_factorisation() noexcept;
+  bool pivot_step(int k) noexcept;
+  void finish_factorisation() noexcept;
+
+  // A = diag(s_) J_ Pi factorised: R (then T) on and above the diagonal of the first m_
+  // columns of a_, zeros below it; Q's reflectors at full length in the columns of q_
+  // (column k: k zeros, 1, then the reflector's tail), so applying one is a fixed-size
+  // (vectorised) 6-vector operation; Z's reflectors in rows 0..r-1 of a_, right of column r
+  using Columns = Eigen::Matrix<double, 6, kMaxDof>;
+  Columns a_;
+  Matrix6 q_;
   Vector6 tau_, ztau_;    // Q's and Z's reflector coefficients
   int perm_[kMaxDof];     // column k of A Pi is column perm_[k] of A
-  Jacobian J_;            // J, or V^T J for a full W
+  int m_ = 0;             // columns of J
+  Columns J_;             // J, or V^T J for a full W (first m_ columns)
+  Vector6 w_;             // the diagonal weights s_, s_inv_, free_ were derived from
   Vector6 s_, s_inv_;     // sqrt of the (eigen)weights and its pseudo-inverse
   Vector6 free_;          // 1 where the weight is 0, else 0
   Matrix6 V_;             // eigenvectors of a full W (rotated_ only)
+  double n2_[kMaxDof] = {};  // while factorising: squared norms of the columns' rows k..5
+  double cut_ = 0.0;      // while factorising: (kPinvTolerance |R_00|)^2
   int rank_ = 0;
+  bool w_finite_ = true;  // w_ finite
   bool finite_ = true;    // J and W finite
   bool rotated_ = false;  // full W: everything is in the frame V^T
-  bool split_ = true;     // see factorise()
+  bool split_ = true;     // see compute_all()
 };
 
 /// Range-space filter P(W) = W J (J^T W J)^+ J^T (eq. 5), W diagonal (a 6-vector).
