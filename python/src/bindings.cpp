@@ -639,7 +639,21 @@ NB_MODULE(_core, m) {
          "one bool per joint; torque_limit (dof,) [N·m or N]; max_force [N]; max_torque [N·m]; "
          "stiffness [N/m] and damping [N·s/m]: the default translational gains.")
       .def_prop_ro("joints", [](const SerialDevice& self) { return self.chain().joints(); },
-                   "The joints of the underlying chain (in chain coordinates).");
+                   "The joints of the underlying chain (in chain coordinates).")
+      .def_prop_ro(
+          "base", [](const SerialDevice& d) { return Eigen::Matrix4d(d.chain().base().matrix()); },
+          "The chain's base pose (4, 4): the first joint's frame is base @ joints[0].origin.")
+      .def_prop_ro(
+          "handle",
+          [](const SerialDevice& d) { return Eigen::Matrix4d(d.chain().handle().matrix()); },
+          "The handle frame (4, 4) in the last joint's frame.")
+      .def_prop_ro(
+          "coupling", [](const SerialDevice& d) { return Eigen::MatrixXd(d.coupling()); },
+          "C (dof, dof) of the joint map s = C q + c0 from device to chain coordinates.")
+      .def_prop_ro(
+          "coupling_offset",
+          [](const SerialDevice& d) { return Eigen::VectorXd(d.coupling_offset()); },
+          "c0 (dof,) of the joint map s = C q + c0.");
 
   nb::class_<PhantomOmni, SerialDevice>(
       m, "PhantomOmni",

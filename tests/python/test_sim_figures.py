@@ -163,7 +163,7 @@ def test_passive_joints_get_no_torque_and_motors_stay_in_their_limits(runs, name
     r = runs[name]
     from virtmech.sim.loop import make_device
 
-    device, _ = make_device(r.scenario["device"])
+    device = make_device(r.scenario["device"])
     act = np.asarray(device.actuated)
     lim = np.asarray(device.torque_limit)
     n = device.dof

@@ -26,20 +26,38 @@ def _base() -> np.ndarray:
     return B
 
 
+def _arm7() -> vm.Device:
+    """A 7-joint arm (revolute and prismatic, twisted axes), joints 5 and 6 passive."""
+    J = []
+    axes = [[0, 0, 1], [0, 1, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0], [0, 0.6, 0.8]]
+    for k, a in enumerate(axes):
+        o = np.eye(4)
+        o[:3, 3] = [0.0, 0.0, 0.08] if k else [0.0, 0.0, 0.0]
+        o[:3, :3] = vm.so3_exp([0.1 * k, -0.05 * k, 0.2])
+        J.append(
+            vm.Joint("prismatic" if k == 3 else "revolute", a, o, -0.05 if k == 3 else -2.5,
+                     0.05 if k == 3 else 2.5)
+        )
+    H = np.eye(4)
+    H[:3, 3] = [0.0, 0.02, 0.05]
+    return vm.Device(J, [True] * 5 + [False] * 2, handle=H, base=_base(),
+                     torque_limit=[2.0, 2.0, 1.5, 20.0, 1.0, 0.0, 0.0])
+
+
 DEVICES = {
-    "omni": lambda: (vm.PhantomOmni(), None),
-    "omni-offsets": lambda: (
-        vm.PhantomOmni(gimbal_offset=[0.3, -0.2, 0.1], gimbal_sign=[-1.0, 1.0, -1.0]),
-        None,
+    "omni": lambda: vm.PhantomOmni(),
+    "omni-offsets": lambda: vm.PhantomOmni(
+        gimbal_offset=[0.3, -0.2, 0.1], gimbal_sign=[-1.0, 1.0, -1.0]
     ),
-    "planar3r": lambda: (vm.Planar3R(link1=0.25, link2=0.15, base=_base()), _base()),
+    "planar3r": lambda: vm.Planar3R(link1=0.25, link2=0.15, base=_base()),
+    "arm7": _arm7,
 }
 
 
 @pytest.mark.parametrize("name", sorted(DEVICES))
 def test_mjcf_handle_matches_core_kinematics(name):
-    device, base = DEVICES[name]()
-    built = build_mjcf(device, base=base)
+    device = DEVICES[name]()
+    built = build_mjcf(device)
     model = compile_model(built)
     data = mujoco.MjData(model)
     site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "handle")
@@ -59,8 +77,8 @@ def test_mjcf_handle_matches_core_kinematics(name):
 
 @pytest.mark.parametrize("name", sorted(DEVICES))
 def test_motors_drive_the_device_joints_with_their_torque_limits(name):
-    device, base = DEVICES[name]()
-    built = build_mjcf(device, base=base)
+    device = DEVICES[name]()
+    built = build_mjcf(device)
     model = compile_model(built)
     data = mujoco.MjData(model)
     act = np.flatnonzero(device.actuated)

@@ -28,7 +28,14 @@ import virtmech as vm
 from .grip import finger_forces_batch
 from .human import HandImpedance, Intent
 from .inner import CompiledLoop, PythonLoop
-from .model import BuiltModel, DeviceModel, HandBody, build_mjcf, compile_model
+from .model import (
+    BuiltModel,
+    DeviceModel,
+    HandBody,
+    build_mjcf,
+    compile_model,
+    world_gravity,
+)
 from .sensors import Sensors, SensorSettings
 
 # ---------------------------------------------------------------------------------------
@@ -42,27 +49,20 @@ def translation(p) -> np.ndarray:
 
 
 def make_device(d: dict):
-    """A vm device from a scenario's [device] table; returns (device, base pose or None)."""
+    """A vm device from a scenario's [device] table."""
     if d["type"] == "PhantomOmni":
-        return (
-            vm.PhantomOmni(
-                l1=d["l1"],
-                l2=d["l2"],
-                max_force=d["max_force"],
-                motor_torque_limit=d["motor_torque_limit"],
-            ),
-            None,
-        )
-    base = translation(d["base_position"])
-    return (
-        vm.Planar3R(
-            link1=d["link1"],
-            link2=d["link2"],
-            base=base,
-            torque_limit=d["torque_limit"],
+        return vm.PhantomOmni(
+            l1=d["l1"],
+            l2=d["l2"],
             max_force=d["max_force"],
-        ),
-        base,
+            motor_torque_limit=d["motor_torque_limit"],
+        )
+    return vm.Planar3R(
+        link1=d["link1"],
+        link2=d["link2"],
+        base=translation(d["base_position"]),
+        torque_limit=d["torque_limit"],
+        max_force=d["max_force"],
     )
 
 
@@ -112,20 +112,30 @@ def device_physics(scenario_device: dict) -> DeviceModel:
 # initial pose
 
 
+# start-pose seeds by device name, in order of preference (the Omni's gimbal branches)
+_SEEDS = {
+    "PhantomOmni": [
+        [0.0, 0.4, 0.2] + g
+        for g in (
+            [-1.5, 0.3, 1.5],
+            [1.5, 0.3, -1.5],
+            [0, 0.3, 0],
+            [-1.5, 0.3, -1.5],
+            [1.5, 0.3, 1.5],
+        )
+    ],
+    "Planar3R": [[0.3, 1.5, -1.0], [-0.3, -1.5, 1.0]],
+}
+
+
 def _seeds(device) -> list[np.ndarray]:
-    if isinstance(device, vm.PhantomOmni):
-        arm = [0.0, 0.4, 0.2]
-        return [
-            np.array(arm + g)
-            for g in (
-                [-1.5, 0.3, 1.5],
-                [1.5, 0.3, -1.5],
-                [0, 0.3, 0],
-                [-1.5, 0.3, -1.5],
-                [1.5, 0.3, 1.5],
-            )
-        ] + [device.home]
-    return [np.array([0.3, 1.5, -1.0]), np.array([-0.3, -1.5, 1.0]), device.home]
+    """The device's own seeds, its home, then four fixed draws within its limits (any
+    device)."""
+    lo = np.where(np.isfinite(device.lower), device.lower, -np.pi)
+    hi = np.where(np.isfinite(device.upper), device.upper, np.pi)
+    draws = np.random.default_rng(0).uniform(lo, hi, size=(4, device.dof))
+    named = [np.array(s, dtype=float) for s in _SEEDS.get(device.name, [])]
+    return named + [np.asarray(device.home, dtype=float)] + list(draws)
 
 
 def solve_ik(device, T: np.ndarray, length_scale: float = 0.1, iterations: int = 200):
@@ -384,7 +394,7 @@ def run(
     seed = S["seed"] if seed is None else int(seed)
     rng = np.random.default_rng(seed)
 
-    device, base = make_device(S["device"])
+    device = make_device(S["device"])
     mech = make_mechanism(S["mechanism"])
     ctrl = vm.Controller(device, mech, **controller_kwargs(S["controller"]))
     T_ctrl = S["controller"]["period_s"]
@@ -396,17 +406,12 @@ def run(
     contacts = S["human"]["grip_contacts"]
     phys = device_physics(S["device"])
     gravity_on = S["physics"]["gravity"]
-    g_world = (
-        np.array([0.0, -9.81, 0.0])
-        if isinstance(device, vm.PhantomOmni)
-        else np.array([0.0, 0.0, -9.81])
-    )
+    g_world = world_gravity(device)
     nsub = int(round(S["physics"]["rate_hz"] * T_ctrl))
     built: BuiltModel = build_mjcf(
         device,
         params=phys,
         hand=HandBody(human.mass_kg, human.inertia),
-        base=base,
         gravity=g_world if gravity_on else np.zeros(3),
         timestep=T_ctrl / nsub,
     )

@@ -34,13 +34,13 @@ import virtmech as vm
 class DeviceModel:
     """Physical parameters of a simulated device (SI units).
 
-    Defaults are for the PHANTOM Omni (``../shared/REFERENCE.md``); ``for_device`` picks
-    per-device defaults. Values marked (check) are estimates, kept as parameters.
+    Defaults are for the PHANTOM Omni (docs/devices.md); ``for_device`` picks per-device
+    defaults. Values marked (check) are estimates, kept as parameters.
     """
 
     #: mass of each arm link (upper arm, forearm; Planar3R: link1, link2) [kg] (check)
     link_mass: float = 0.015
-    #: mass of the waist turret (Omni only) [kg] (check)
+    #: mass of a turret on the first joint (the Omni's waist; 0: none) [kg] (check)
     base_mass: float = 0.08
     #: reflected motor-rotor inertia on every actuated joint [kg·m²] (check); with the
     #: link, gimbal and stylus masses it gives the Omni 30..50 g apparent mass at the
@@ -63,8 +63,12 @@ class DeviceModel:
     stylus_com: float = -0.02
 
     @staticmethod
-    def for_device(device_type: str) -> DeviceModel:
-        if device_type == "Planar3R":
+    def for_device(device_name: str) -> DeviceModel:
+        """Defaults by device name: the Omni's, the Planar3R's, else the Omni's without its
+        waist turret (a generic arm of light links)."""
+        if device_name == "PhantomOmni":
+            return DeviceModel()
+        if device_name == "Planar3R":
             return DeviceModel(
                 link_mass=0.15,
                 base_mass=0.0,
@@ -77,7 +81,7 @@ class DeviceModel:
                 stylus_mass=0.03,
                 stylus_com=-0.02,
             )
-        return DeviceModel()
+        return DeviceModel(base_mass=0.0)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -109,48 +113,33 @@ class Coupling:
         return self.Cinv @ (s - self.c0)
 
 
+# gravity in each device's base frame where it is not -z: OpenHaptics' frames have y up
+_GRAVITY = {"PhantomOmni": (0.0, -9.81, 0.0)}
+
+
+def world_gravity(device) -> np.ndarray:
+    """Gravity [m/s²] in the device's world frame (its base frame's parent)."""
+    return np.array(_GRAVITY.get(device.name, (0.0, 0.0, -9.81)))
+
+
+def _serial(device):
+    """The device as a serial chain (the simulation builds its bodies from the chain)."""
+    if not isinstance(device, vm.Device):
+        raise TypeError(
+            f"device: the simulation needs a serial-chain device (vm.Device and its "
+            f"subclasses), got {type(device).__name__}"
+        )
+    return device
+
+
 def coupling_of(device) -> Coupling:
-    """The joint map of a device the simulation knows (PhantomOmni, Planar3R)."""
-    n = device.dof
-    if isinstance(device, vm.PhantomOmni):
-        d = device.to_dict()
-        C = np.eye(6)
-        C[2, 1] = -1.0  # serial elbow = absolute elbow - shoulder (parallelogram)
-        c0 = np.zeros(6)
-        for i in range(3):
-            C[3 + i, 3 + i] = d["gimbal_sign"][i]
-            c0[3 + i] = -d["gimbal_sign"][i] * d["gimbal_offset"][i]
-        return Coupling(C, c0)
-    return Coupling(np.eye(n), np.zeros(n))
-
-
-def base_of(device, base: np.ndarray | None = None) -> np.ndarray:
-    """The chain's base pose: identity for the Omni, the given base for a Planar3R."""
-    if base is not None:
-        return np.asarray(base, dtype=float)
-    return np.eye(4)
-
-
-def handle_of(device, base: np.ndarray, coupling: Coupling) -> np.ndarray:
-    """The chain's fixed handle offset, recovered from the core: forward at s = 0 is
-    base * prod(origin_i) * handle."""
-    q0 = coupling.to_device(np.zeros(device.dof))
-    T = base.copy()
-    for j in device.joints:
-        T = T @ j.origin
-    return np.linalg.inv(T) @ device.forward(q0)
+    """The device's joint map s = C q + c0, as the core holds it."""
+    d = _serial(device)
+    return Coupling(np.asarray(d.coupling, dtype=float), np.asarray(d.coupling_offset, dtype=float))
 
 
 # ---------------------------------------------------------------------------------------
-# MJCF
-
-
-def _f(x) -> str:
-    return repr(float(x))
-
-
-def _fmt(v) -> str:
-    return " ".join(repr(float(x)) for x in np.ravel(v))
+# the MuJoCo model, built with MjSpec (MuJoCo's model-editing API)
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
@@ -162,14 +151,16 @@ def _quat(R: np.ndarray) -> np.ndarray:
     return q
 
 
-def _pose_attrs(T: np.ndarray) -> str:
-    return f'pos="{_fmt(T[:3, 3])}" quat="{_fmt(_quat(T[:3, :3]))}"'
+def _place(element, T: np.ndarray) -> None:
+    element.pos = T[:3, 3]
+    element.quat = _quat(T[:3, :3])
 
 
-def _inertial(mass: float, com, inertia) -> str:
-    mass = max(mass, 1e-6)
-    inertia = np.maximum(np.asarray(inertia, dtype=float), 1e-10)
-    return f'<inertial pos="{_fmt(com)}" mass="{_f(mass)}" diaginertia="{_fmt(inertia)}"/>'
+def _inertial(body, mass: float, com, inertia) -> None:
+    body.explicitinertial = True
+    body.mass = max(mass, 1e-6)
+    body.ipos = np.asarray(com, dtype=float)
+    body.inertia = np.maximum(np.asarray(inertia, dtype=float), 1e-10)
 
 
 def _rod_inertia(mass: float, length: float) -> np.ndarray:
@@ -179,9 +170,9 @@ def _rod_inertia(mass: float, length: float) -> np.ndarray:
 
 @dataclass
 class BuiltModel:
-    """An MJCF model of a device with the indices the loop needs."""
+    """A device's MuJoCo model (its MjSpec) with the indices the loop needs."""
 
-    xml: str
+    spec: object  # mujoco.MjSpec
     coupling: Coupling
     base: np.ndarray
     handle: np.ndarray
@@ -190,24 +181,32 @@ class BuiltModel:
     device_bodies: list[str]
     handle_site: str = "handle"
 
+    @property
+    def xml(self) -> str:
+        """The model as MJCF."""
+        return self.spec.to_xml()
+
 
 def build_mjcf(
     device,
     params: DeviceModel | None = None,
     hand: HandBody | None = None,
-    base: np.ndarray | None = None,
     gravity=(0.0, 0.0, -9.81),
     timestep: float = 2.5e-4,
 ) -> BuiltModel:
-    """MJCF of `device` (a vm.PhantomOmni or vm.Planar3R): one body per chain joint, motors
-    with torque limits on the actuated joints, friction and damping on every joint, link
-    inertias, the hand's mass on the handle, and a site at the handle frame."""
-    dtype = device.to_dict()["type"]
-    params = params or DeviceModel.for_device(dtype)
+    """The MuJoCo model of any serial-chain `device` (vm.Device, vm.PhantomOmni,
+    vm.Planar3R ...): one body per chain joint, motors with torque limits on the actuated
+    joints, friction and damping on every joint, link inertias, the hand's mass on the
+    handle, and a site at the handle frame. Built with MjSpec from the core's chain."""
+    import mujoco
+
+    device = _serial(device)
+    name = device.name
+    params = params or DeviceModel.for_device(name)
     hand = hand or HandBody()
     coupling = coupling_of(device)
-    B = base_of(device, base)
-    H = handle_of(device, B, coupling)
+    B = np.asarray(device.base, dtype=float)
+    H = np.asarray(device.handle, dtype=float)
     joints = device.joints
     n = device.dof
     actuated = list(device.actuated)
@@ -216,7 +215,7 @@ def build_mjcf(
 
     # link geometry: the offset to the next joint (or the handle) in each body frame
     nxt = [joints[i + 1].origin[:3, 3] for i in range(n - 1)] + [H[:3, 3]]
-    last_arm = max(i for i in range(n) if actuated[i])  # bodies after it form the wrist
+    last_arm = max((i for i in range(n) if actuated[i]), default=-1)  # then the wrist
 
     # a joint is written on the chain joint directly when its device row is a unit vector
     direct = []
@@ -225,104 +224,98 @@ def build_mjcf(
         nz = np.flatnonzero(np.abs(row) > 0)
         direct.append(len(nz) == 1 and nz[0] == i and row[i] == 1.0 and coupling.c0[i] == 0.0)
 
-    lines = [
-        f'<mujoco model="{dtype}">',
-        '  <compiler angle="radian" autolimits="true"/>',
-        f'  <option timestep="{_f(timestep)}" gravity="{_fmt(gravity)}" '
-        'integrator="implicitfast">',
-        # nothing in the model collides (every geom has contype 0) and it is one kinematic
-        # tree: collision detection and island discovery would only cost time
-        '    <flag contact="disable" island="disable"/>',
-        "  </option>",
-        '  <default><geom contype="0" conaffinity="0" rgba="0.6 0.6 0.65 1"/></default>',
-        "  <worldbody>",
-    ]
-    indent = "    "
+    spec = mujoco.MjSpec()
+    spec.modelname = name
+    spec.compiler.degree = False
+    spec.compiler.autolimits = True
+    spec.option.timestep = timestep
+    spec.option.gravity = np.asarray(gravity, dtype=float)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    # nothing in the model collides (every geom has contype 0) and it is one kinematic
+    # tree: collision detection and island discovery would only cost time
+    spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
+    spec.default.geom.contype = 0
+    spec.default.geom.conaffinity = 0
+    spec.default.geom.rgba = [0.6, 0.6, 0.65, 1.0]
+
+    def limits(element, lo: float, hi: float) -> None:
+        if np.isfinite(lo) and np.isfinite(hi):
+            element.range = [lo, hi]
+            element.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+
+    parent = spec.worldbody
     bodies: list[str] = []
-    first = B @ joints[0].origin
     for i, j in enumerate(joints):
-        T = first if i == 0 else j.origin
-        name = f"link{i}"
-        bodies.append(name)
-        lines.append(f'{indent}<body name="{name}" {_pose_attrs(T)}>')
-        ind = indent + "  "
-        jtype = "hinge" if j.type == "revolute" else "slide"
+        body = parent.add_body(name=f"link{i}")
+        _place(body, B @ j.origin if i == 0 else j.origin)
+        bodies.append(body.name)
         passive = not actuated[i]
-        fr = params.passive_friction if passive else params.joint_friction
-        dm = params.passive_damping if passive else params.joint_damping
-        jattr = f'damping="{_f(dm)}"'
+        hinge = j.type == "revolute"
+        joint = body.add_joint(
+            name=f"s{i}",
+            type=mujoco.mjtJoint.mjJNT_HINGE if hinge else mujoco.mjtJoint.mjJNT_SLIDE,
+            axis=np.asarray(j.axis, dtype=float),
+            damping=params.passive_damping if passive else params.joint_damping,
+        )
         if direct[i]:
-            arm = 0.0 if passive else params.armature
-            jattr += f' frictionloss="{_f(fr)}" armature="{_f(arm)}"'
-            if np.isfinite(lower[i]) and np.isfinite(upper[i]):
-                jattr += f' range="{_f(lower[i])} {_f(upper[i])}"'
-        lines.append(f'{ind}<joint name="s{i}" type="{jtype}" axis="{_fmt(j.axis)}" {jattr}/>')
+            joint.frictionloss = params.passive_friction if passive else params.joint_friction
+            joint.armature = 0.0 if passive else params.armature
+            limits(joint, lower[i], upper[i])
         seg = nxt[i]
         L = float(np.linalg.norm(seg))
         mass = params.link_mass if i <= last_arm else params.gimbal_mass
-        if dtype == "PhantomOmni" and i == 0:
-            # the turret: its frame is at the shoulder; its mass sits on the waist axis
-            lines.append(f"{ind}{_inertial(params.base_mass, [0, -0.02, 0], [2e-5, 4e-5, 2e-5])}")
-            lines.append(f'{ind}<geom type="cylinder" size="0.02 0.01" euler="1.5708 0 0"/>')
+        if i == 0 and params.base_mass > 0.0:
+            # a turret: its frame at the shoulder, its mass on the first joint's axis
+            _inertial(body, params.base_mass, [0, -0.02, 0], [2e-5, 4e-5, 2e-5])
+            body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.02, 0.01, 0],
+                          quat=_quat(vm.so3_exp([np.pi / 2, 0, 0])))
         elif i <= last_arm and L > 1e-9:
-            lines.append(f"{ind}{_inertial(mass, seg / 2, _rod_inertia(mass, L))}")
-            lines.append(f'{ind}<geom type="capsule" fromto="0 0 0 {_fmt(seg)}" size="0.006"/>')
+            _inertial(body, mass, seg / 2, _rod_inertia(mass, L))
+            body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.006, 0, 0],
+                          fromto=np.concatenate([np.zeros(3), seg]))
         elif i < n - 1:
-            lines.append(f"{ind}{_inertial(mass, [0, 0, 0], [1e-6, 1e-6, 1e-6])}")
+            _inertial(body, mass, np.zeros(3), [1e-6, 1e-6, 1e-6])
         else:
             # the stylus body: pen mass along the stylus, the handle site, the hand body
             z = H[:3, 2]
             com = H[:3, 3] + params.stylus_com * z
-            lines.append(
-                f"{ind}{_inertial(params.stylus_mass, com, _rod_inertia(params.stylus_mass, 0.12))}"
-            )
-            a, b = H[:3, 3] - 0.09 * z, H[:3, 3] + 0.03 * z
-            lines.append(
-                f'{ind}<geom type="capsule" fromto="{_fmt(a)} {_fmt(b)}" size="0.005" '
-                'rgba="0.2 0.2 0.25 1"/>'
-            )
-            lines.append(f'{ind}<site name="handle" {_pose_attrs(H)} size="0.004"/>')
+            _inertial(body, params.stylus_mass, com, _rod_inertia(params.stylus_mass, 0.12))
+            body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.005, 0, 0],
+                          fromto=np.concatenate([H[:3, 3] - 0.09 * z, H[:3, 3] + 0.03 * z]),
+                          rgba=[0.2, 0.2, 0.25, 1.0])
+            site = body.add_site(name="handle", size=[0.004, 0.004, 0.004])
+            _place(site, H)
             # the hand: rigid on the handle, weight carried by the user's arm (gravcomp)
-            lines.append(f'{ind}<body name="hand" {_pose_attrs(H)} gravcomp="1">')
-            ih = hand.inertia
-            lines.append(f"{ind}  {_inertial(hand.mass_kg, [0, 0, 0], [ih, ih, ih])}")
-            lines.append(f"{ind}</body>")
-        indent = ind
-    for _ in range(n):
-        indent = indent[:-2]
-        lines.append(f"{indent}</body>")
-    lines.append("  </worldbody>")
+            hb = body.add_body(name="hand", gravcomp=1.0)
+            _place(hb, H)
+            _inertial(hb, hand.mass_kg, np.zeros(3), np.full(3, hand.inertia))
+        parent = body
 
-    # device joints that are not chain joints: fixed tendons
-    tendons, actuators = [], []
+    # device joints that are not chain joints: fixed tendons; motors on the actuated ones
     for i in range(n):
-        target = f'joint="s{i}"'
+        trn, target = mujoco.mjtTrn.mjTRN_JOINT, f"s{i}"
         if not direct[i]:
             passive = not actuated[i]
-            fr = params.passive_friction if passive else params.joint_friction
-            arm = 0.0 if passive else params.armature
-            attrs = f'name="q{i}" frictionloss="{_f(fr)}" armature="{_f(arm)}"'
-            if np.isfinite(lower[i]) and np.isfinite(upper[i]):
-                off = float(coupling.Cinv[i] @ coupling.c0)
-                attrs += f' range="{_f(lower[i] + off)} {_f(upper[i] + off)}"'
-            parts = "".join(
-                f'<joint joint="s{j}" coef="{_f(coupling.Cinv[i, j])}"/>'
-                for j in range(n)
-                if coupling.Cinv[i, j] != 0.0
+            tendon = spec.add_tendon(
+                name=f"q{i}",
+                frictionloss=params.passive_friction if passive else params.joint_friction,
+                armature=0.0 if passive else params.armature,
             )
-            tendons.append(f"    <fixed {attrs}>{parts}</fixed>")
-            target = f'tendon="q{i}"'
+            off = float(coupling.Cinv[i] @ coupling.c0)
+            limits(tendon, lower[i] + off, upper[i] + off)
+            for k in range(n):
+                if coupling.Cinv[i, k] != 0.0:
+                    tendon.wrap_joint(f"s{k}", float(coupling.Cinv[i, k]))
+            trn, target = mujoco.mjtTrn.mjTRN_TENDON, f"q{i}"
         if actuated[i]:
             lim = float(torque_limit[i])
-            actuators.append(
-                f'    <motor name="m{i}" {target} gear="1" ctrlrange="{_f(-lim)} {_f(lim)}"/>'
+            spec.add_actuator(
+                name=f"m{i}", trntype=trn, target=target, gear=[1, 0, 0, 0, 0, 0],
+                ctrlrange=[-lim, lim], ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
             )
-    if tendons:
-        lines += ["  <tendon>", *tendons, "  </tendon>"]
-    lines += ["  <actuator>", *actuators, "  </actuator>", "</mujoco>"]
-    xml = "\n".join(lines) + "\n"
     return BuiltModel(
-        xml=xml,
+        spec=spec,
         coupling=coupling,
         base=B,
         handle=H,
@@ -333,10 +326,8 @@ def build_mjcf(
 
 
 def compile_model(built: BuiltModel):
-    """The mujoco.MjModel of a built MJCF."""
-    import mujoco
-
-    return mujoco.MjModel.from_xml_string(built.xml)
+    """The mujoco.MjModel of a built model."""
+    return built.spec.compile()
 
 
 def apparent_mass(model, data, device, coupling: Coupling, q: np.ndarray) -> np.ndarray:

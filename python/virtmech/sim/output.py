@@ -96,7 +96,7 @@ def metrics(result: SimResult) -> dict:
     from .loop import make_device
 
     r = result
-    device, _ = make_device(r.scenario.data["device"])
+    device = make_device(r.scenario.data["device"])
     n = device.dof
     act = np.asarray(device.actuated, dtype=bool)
     lim = np.asarray(device.torque_limit, dtype=float)
