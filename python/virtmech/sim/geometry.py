@@ -116,18 +116,27 @@ def line_guide(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
 #: falls back on the nearest placement's position error, see `distances`)
 GEOMETRY: dict[str, Geometry] = {
     "PlanarArm": Geometry(
-        planar_arm, "handle", "the circle", "handle's distance from the circle",
+        planar_arm,
+        "handle",
+        "the circle",
+        "handle's distance from the circle",
         "inside the circle",
     ),
     "Probe": Geometry(
         probe, "tip", "the plane", "tip height above the plane", "the tip is behind the plane"
     ),
     "PointPivot": Geometry(
-        point_pivot, "tip", "the point", "tip distance from the point",
+        point_pivot,
+        "tip",
+        "the point",
+        "tip distance from the point",
         "the tip is below the point along its normal",
     ),
     "LineGuide": Geometry(
-        line_guide, "tip", "the line", "tip distance from the line",
+        line_guide,
+        "tip",
+        "the line",
+        "tip distance from the line",
         "the tip is below the line along its normal",
     ),
 }

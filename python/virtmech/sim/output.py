@@ -219,8 +219,6 @@ def write_summary(runs: dict[str, dict], path: str | Path) -> dict:
     """summary.json: {"runs": {name: metrics} in the paper's figure order, "within_m",
     "metric_definitions": {name: [unit, definition]}} over a set of runs."""
     ordered = {k: runs[k] for k in paper_order(runs)}
-    summary = _jsonable(
-        {"runs": ordered, "within_m": WITHIN_M, "metric_definitions": METRICS}
-    )
+    summary = _jsonable({"runs": ordered, "within_m": WITHIN_M, "metric_definitions": METRICS})
     Path(path).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return summary
