@@ -25,6 +25,8 @@ import numpy as np
 
 import virtmech as vm
 
+from .geometry import COLUMNS as DIST_COLUMNS
+from .geometry import distances
 from .grip import finger_forces_batch
 from .human import HandImpedance, Intent
 from .inner import CompiledLoop, PythonLoop
@@ -195,7 +197,8 @@ def initial_joints(scenario: dict, device, mechanism) -> np.ndarray:
 
 
 class PlanarGeometry:
-    """Distance from a PlanarArm's circle and the angles of the handle on it."""
+    """The angles of the handle on a PlanarArm's circle (and its distance from the circle,
+    as sim.geometry.planar_arm computes it for the log)."""
 
     def __init__(self, mech):
         self.c = np.asarray(mech.pivot, dtype=float)
@@ -316,16 +319,18 @@ def log_columns(n: int, m: int) -> list[str]:
         + _names("f_range", 6)
         + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz"]
         + ["ax", "ay", "az", "segment"]
-        + ["dist", "arm_pos_angle", "arm_stylus_angle"]
+        + list(DIST_COLUMNS)
+        + ["arm_pos_angle", "arm_stylus_angle"]
         + [f"ff1{c}" for c in xyz]
         + [f"ff2{c}" for c in xyz]
         + ["grip_twist"]
     )
 
 
-#: the columns the inner loop writes, cycle by cycle; the rest of log_columns (the distance
-#: from the path and the grip) follow from them and are computed after the run
-POST_COLUMNS = 10
+#: the columns the inner loop writes, cycle by cycle; the rest of log_columns (the distances
+#: from the mechanism, the PlanarArm's angles and the grip) follow from them and are
+#: computed after the run
+POST_COLUMNS = 13
 
 
 def kernel_columns(n: int, m: int) -> list[str]:
@@ -360,7 +365,10 @@ UNITS = {
     "mhx": "N·m (hand on handle)",
     "ax": "m (hand anchor)",
     "segment": "intent segment index",
-    "dist": "m (distance from the mechanism's path)",
+    "dist": "m (distance from where the mechanism allows; sim.geometry)",
+    "dist_signed": "m (signed distance from the mechanism's path or surface; sim.geometry)",
+    "dist_normal": "m (part along the mechanism's normal; sim.geometry)",
+    "dist_across": "m (the rest; sim.geometry)",
     "arm_pos_angle": "rad (PlanarArm: angle of the handle position about the pivot)",
     "arm_stylus_angle": "rad (PlanarArm: mechanism angle the stylus points for)",
     "ff1x": "N (finger 1 on handle)",
@@ -489,12 +497,12 @@ def run(
     p_h = log[:, c["px"] : c["px"] + 3]
     z_h = log[:, c["sx"] : c["sx"] + 3]
     if planar is not None:
-        dist, a_pos, a_sty = planar.measure_batch(p_h, z_h)
+        _, a_pos, a_sty = planar.measure_batch(p_h, z_h)
     else:
-        dist = np.linalg.norm(log[:, c["e0"] : c["e0"] + 3], axis=1)
         a_pos = a_sty = np.full(N, math.nan)
+    d = distances(mech.to_dict(), p_h, z_h, log[:, c["e0"] : c["e0"] + 3])
     _, F1, _, F2, mz = finger_forces_batch(p_h, z_h, log[:, c["fx"] : c["fx"] + 6], contacts)
-    log[:, c["dist"]] = dist
+    log[:, c["dist"] : c["dist"] + len(DIST_COLUMNS)] = d.columns()
     log[:, c["arm_pos_angle"]] = a_pos
     log[:, c["arm_stylus_angle"]] = a_sty
     log[:, c["ff1x"] : c["ff1x"] + 3] = F1

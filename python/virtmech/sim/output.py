@@ -12,7 +12,7 @@ import numpy as np
 
 from .loop import UNITS, SimResult
 
-WITHIN_M = 1e-3  # the "within 1 mm of the circle" threshold of the metrics
+WITHIN_M = 1e-3  # the "within 1 mm of the mechanism" threshold of the metrics
 
 
 def _unit(col: str) -> str:
@@ -38,6 +38,8 @@ def _jsonable(x):
         return _jsonable(x.tolist())
     if isinstance(x, (np.floating, float)):
         x = float(x)
+        if math.isnan(x):
+            return None  # null: a metric that does not apply (metrics' notes say why)
         return x if math.isfinite(x) else str(x)
     if isinstance(x, (np.integer,)):
         return int(x)
@@ -79,20 +81,50 @@ def write_run(result: SimResult, out_dir: str | Path) -> Path:
     return out
 
 
-def metrics(result: SimResult) -> dict:
-    """Per-run metrics (SI units):
+#: every metric of `metrics`: name -> (unit, definition); the report and docs/scenarios.md
+#: show these. "dist" is the log's distance from where the mechanism allows (sim.geometry):
+#: a PlanarArm's handle from its circle, a probe's tip from its plane, point or line.
+METRICS: dict[str, tuple[str, str]] = {
+    "time_to_1mm_s": (
+        "s",
+        "time from which on dist stays within 1 mm to the end of the run (n/a: it does not "
+        "end within 1 mm)",
+    ),
+    "first_within_1mm_s": ("s", "first time dist is within 1 mm (n/a: never)"),
+    "dist_rms_after_m": ("m", "RMS of dist from time_to_1mm_s on (n/a: as time_to_1mm_s)"),
+    "dist_max_after_m": ("m", "largest dist from time_to_1mm_s on (n/a: as time_to_1mm_s)"),
+    "dist_max_m": ("m", "largest dist over the whole run"),
+    "penetration_max_m": (
+        "m",
+        "unilateral mechanisms: the largest depth of the tip behind the surface, "
+        "max(0, -min dist_normal) (n/a: a bilateral mechanism has no side to press into)",
+    ),
+    "force_max_n": ("N", "largest |f|, the force the device applies at the handle"),
+    "force_rms_n": ("N", "RMS of |f|"),
+    "passive_torque_max": (
+        "N·m",
+        "largest |torque| commanded or delivered on a passive joint (should be 0)",
+    ),
+    "torque_fraction_max": ("1", "largest |commanded torque| / torque limit over the motors"),
+    "motor_fraction_max": (
+        "1",
+        "the same for the motors' output (with gravity compensation, saturated)",
+    ),
+    "energy_to_user_j": (
+        "J",
+        "sum over cycles of T (f·v + m·w): the work the device's wrench did on the handle and "
+        "the hand holding it (negative: energy taken from the user)",
+    ),
+    "faults": ("1", "cycles whose status has a fault bit (0xFF00)"),
+    "sim_time_s": ("s", "simulated time"),
+    "wall_time_s": ("s", "wall-clock time of the simulation loop"),
+    "real_time_factor": ("1", "sim_time_s / wall_time_s"),
+}
 
-    - time_to_1mm_s: the time from which on the handle stays within 1 mm of the mechanism's
-      path to the end of the run (NaN: it does not end within 1 mm)
-    - dist_rms_after_m, dist_max_after_m: RMS and largest distance from then on
-    - first_within_1mm_s: the first time it comes within 1 mm (it may leave again)
-    - force_max_n, force_rms_n: largest and RMS force the device applies at the handle
-    - passive_torque_max: largest |torque| commanded or delivered on a passive joint
-    - torque_fraction_max: largest |commanded torque| / torque limit over the motors
-    - motor_fraction_max: the same for the motors' output (with gravity compensation)
-    - energy_to_user_j: sum over cycles of T (f . v + m . w), the work the device's wrench
-      did on the handle and the hand holding it (negative: energy taken from the user)
-    """
+
+def metrics(result: SimResult) -> dict:
+    """Per-run metrics (SI units), defined in `METRICS`. A metric that does not apply to
+    the run is NaN here (null in run.json and summary.json) and ``notes[name]`` says why."""
     from .loop import make_device
 
     r = result
@@ -100,11 +132,18 @@ def metrics(result: SimResult) -> dict:
     n = device.dof
     act = np.asarray(device.actuated, dtype=bool)
     lim = np.asarray(device.torque_limit, dtype=float)
+    mech = r.info.get("mechanism") or r.scenario.data["mechanism"]
+    point, target = _point_and_target(mech)
+    notes: dict[str, str] = {}
     t = r.t
     d = r.col("dist")
     outside = np.flatnonzero(d > WITHIN_M)
     first_in = np.flatnonzero(d <= WITHIN_M)
-    t_first = float(t[first_in[0]]) if first_in.size else math.nan
+    if first_in.size:
+        t_first = float(t[first_in[0]])
+    else:
+        t_first = math.nan
+        notes["first_within_1mm_s"] = f"n/a: the {point} never came within 1 mm of {target}"
     k0 = 0 if outside.size == 0 else int(outside[-1]) + 1
     if k0 < len(d):
         t1 = float(t[k0])
@@ -112,6 +151,14 @@ def metrics(result: SimResult) -> dict:
         rms_after, max_after = float(np.sqrt(np.mean(after**2))), float(after.max())
     else:
         t1 = rms_after = max_after = math.nan
+        why = f"n/a: the {point} did not end the run within 1 mm of {target}"
+        for k in ("time_to_1mm_s", "dist_rms_after_m", "dist_max_after_m"):
+            notes[k] = why
+    if mech.get("unilateral"):
+        penetration = max(0.0, -float(np.min(r.col("dist_normal"))))
+    else:
+        penetration = math.nan
+        notes["penetration_max_m"] = "n/a: a bilateral mechanism (no side to press into)"
     F = r.cols("fx", "fy", "fz")
     fmag = np.linalg.norm(F, axis=1)
     tau = r.cols(*[f"tau{i}" for i in range(n)])
@@ -124,11 +171,16 @@ def metrics(result: SimResult) -> dict:
     V = r.cols("vx", "vy", "vz", "wx", "wy", "wz")
     energy = float(T * np.sum(W * V))
     status = r.col("status").astype(np.int64)
+    rtf = r.sim_time_s / r.wall_time_s if r.wall_time_s > 0 else math.nan
+    if not math.isfinite(rtf):
+        notes["real_time_factor"] = "n/a: no wall-clock time was measured"
     return {
         "time_to_1mm_s": t1,
         "first_within_1mm_s": t_first,
         "dist_rms_after_m": rms_after,
         "dist_max_after_m": max_after,
+        "dist_max_m": float(d.max()),
+        "penetration_max_m": penetration,
         "force_max_n": float(fmag.max()),
         "force_rms_n": float(np.sqrt(np.mean(fmag**2))),
         "passive_torque_max": float(passive.max()),
@@ -138,12 +190,35 @@ def metrics(result: SimResult) -> dict:
         "faults": int(np.count_nonzero(status & 0xFF00)),
         "sim_time_s": r.sim_time_s,
         "wall_time_s": r.wall_time_s,
-        "real_time_factor": r.sim_time_s / r.wall_time_s if r.wall_time_s > 0 else math.inf,
+        "real_time_factor": rtf,
+        "notes": notes,
     }
 
 
+def _point_and_target(mech: dict) -> tuple[str, str]:
+    """'handle' / 'tip' and what it is measured from, for the metrics' notes."""
+    from .geometry import geometry_of
+
+    g = geometry_of(mech)
+    return (g.point, g.target) if g is not None else ("handle", "the mechanism")
+
+
+def paper_order(names) -> list[str]:
+    """Scenario names in the paper's figure order (fig9, fig10, fig11, fig12 by number, not
+    as strings), device by device; names without a figure number after, alphabetically."""
+    import re
+
+    def key(name: str):
+        m = re.search(r"fig(\d+)", name)
+        return (0, name[: m.start()], int(m.group(1)), name) if m else (1, name, 0, name)
+
+    return sorted(names, key=key)
+
+
 def write_summary(runs: dict[str, dict], path: str | Path) -> dict:
-    """summary.json: {"runs": {name: metrics}, ...} over a set of runs."""
-    summary = _jsonable({"runs": runs, "within_m": WITHIN_M})
+    """summary.json: {"runs": {name: metrics} in the paper's figure order, "within_m",
+    "metric_definitions": {name: [unit, definition]}} over a set of runs."""
+    ordered = {k: runs[k] for k in paper_order(runs)}
+    summary = _jsonable({"runs": ordered, "within_m": WITHIN_M, "metric_definitions": METRICS})
     Path(path).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return summary

@@ -1,9 +1,13 @@
-"""Figures of a run in the paper's style: the plane face-on, the handle drawn as a thick
-line, force arrows; time plots of force and distance from the circle (for a Probe: the
-tip's height above its plane and the force along the normal against Kp times the depth)."""
+"""Figures of a run in the paper's style, drawn for what the mechanism is: the handle as a
+thick line where the mechanism is seen clearest (a PlanarArm's circle face-on, a Probe's
+plane edge-on, ...), force arrows at one scale for every figure (FORCE_SCALE_M_PER_N);
+time plots of force and of the distances of sim.geometry (a PlanarArm: from the circle;
+a Probe: the tip's height above its plane and the force along the normal against Kp times
+the depth; a PointPivot or LineGuide: the tip from its point or line)."""
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -30,11 +34,135 @@ def plane_basis(normal) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return u, np.cross(n, u), n
 
 
-def _mechanism_plane(result):
-    m = result.info["mechanism"]
-    if m["type"] == "PlanarArm":
-        return np.asarray(m["pivot"]), np.asarray(m["normal"]), float(m["length"])
-    return None, None, None
+#: one force scale for every figure of every report: an arrow of 10 mm is 1 N
+FORCE_SCALE_M_PER_N = 0.010
+
+
+def _mechanism(result) -> dict:
+    return result.info.get("mechanism") or result.scenario.data["mechanism"]
+
+
+def _length(mech: dict) -> float:
+    return float(mech.get("length", 0.08))
+
+
+def _spread_axis(X: np.ndarray, n: np.ndarray, fallback) -> np.ndarray:
+    """The unit direction, normal to n, along which the points X spread most (else
+    `fallback` projected normal to n; else plane_basis's u)."""
+    W = X - X.mean(axis=0)
+    W = W - np.outer(W @ n, n)
+    if np.abs(W).max() > 1e-6:
+        _, _, vt = np.linalg.svd(W, full_matrices=False)
+        u = vt[0] - (vt[0] @ n) * n
+        if u @ np.asarray(fallback if fallback is not None else u) < 0:
+            u = -u
+        return u / np.linalg.norm(u)
+    if fallback is not None:
+        u = np.asarray(fallback, dtype=float) - (np.asarray(fallback) @ n) * n
+        if np.linalg.norm(u) > 1e-9:
+            return u / np.linalg.norm(u)
+    return plane_basis(n)[0]
+
+
+class _View:
+    """How a mechanism is seen in the plane figure: axes (u, v), a title, and its drawing."""
+
+    def __init__(self, u, v, title: str, draw=None, anchors=()):
+        self.u, self.v, self.title, self.draw = np.asarray(u), np.asarray(v), title, draw
+        self.anchors = [np.asarray(a, dtype=float) for a in anchors]  # kept in the frame
+
+
+def _view_planar_arm(m: dict, P, tips) -> _View:
+    u, v, _ = plane_basis(m["normal"])
+    c, L = np.asarray(m["pivot"], dtype=float), _length(m)
+
+    def draw(ax, uv):
+        a = np.linspace(0, 2 * np.pi, 400)
+        pc = uv(c)[0]
+        ax.plot(
+            pc[0] + L * np.cos(a),
+            pc[1] + L * np.sin(a),
+            ls="--",
+            color="0.6",
+            lw=1,
+            label="constraint circle (virtual mechanism path)",
+        )
+        ax.plot(*pc, marker="o", color="k", ms=5)
+        ax.annotate("pivot", pc, textcoords="offset points", xytext=(6, -12), fontsize=8)
+
+    return _View(u, v, "the circle's plane seen face-on", draw, [c])
+
+
+def _view_probe(m: dict, P, tips) -> _View:
+    n = np.asarray(m["plane_normal"], dtype=float)
+    n /= np.linalg.norm(n)
+    u = _spread_axis(tips, n, m.get("tangent"))
+    c = np.asarray(m["plane_point"], dtype=float)
+
+    def draw(ax, uv):
+        h0 = float(c @ n)
+        ax.axhline(h0, color="0.3", lw=1.5, label="the plane (edge-on)")
+        lo = ax.get_ylim()[0] if ax.get_ylim()[0] < h0 else h0 - 0.01
+        ax.axhspan(
+            min(lo, h0 - 0.01),
+            h0,
+            color="0.85",
+            alpha=0.5,
+            zorder=0,
+            label="behind the plane" + (" (the tip may not go)" if m.get("unilateral") else ""),
+        )
+
+    return _View(u, n, "the plane seen edge-on (its normal up)", draw, [c])
+
+
+def _view_point_pivot(m: dict, P, tips) -> _View:
+    n = np.asarray(m["normal"], dtype=float)
+    n /= np.linalg.norm(n)
+    u = _spread_axis(P, n, m.get("tangent"))
+    c = np.asarray(m["point"], dtype=float)
+
+    def draw(ax, uv):
+        pc = uv(c)[0]
+        if m.get("unilateral"):
+            ax.plot(
+                [pc[0], pc[0]],
+                [pc[1], pc[1] + 2 * _length(m)],
+                color="0.6",
+                ls="--",
+                lw=1,
+                label="where the tip may lift off (along the normal)",
+            )
+        ax.plot(*pc, marker="o", color="k", ms=6, ls="none", label="the pivot point")
+
+    return _View(u, n, "seen from the side (the point's normal up)", draw, [c])
+
+
+def _view_line_guide(m: dict, P, tips) -> _View:
+    d = np.asarray(m["direction"], dtype=float)
+    d /= np.linalg.norm(d)
+    n = np.asarray(m["normal"], dtype=float)
+    n = n - (n @ d) * d
+    n /= np.linalg.norm(n)
+    c = np.asarray(m["point"], dtype=float)
+
+    def draw(ax, uv):
+        ax.axhline(float(c @ n), color="0.3", lw=1.5, label="the line")
+
+    return _View(d, n, "the line and its normal (seen across)", draw, [c])
+
+
+def _view_default(m: dict, P, tips) -> _View:
+    u, v, _ = plane_basis([0.0, 0.0, 1.0])
+    return _View(u, v, "world x-y")
+
+
+#: mechanism type -> its view in the plane figure
+VIEWS = {
+    "PlanarArm": _view_planar_arm,
+    "Probe": _view_probe,
+    "PointPivot": _view_point_pivot,
+    "LineGuide": _view_line_guide,
+}
 
 
 def _snapshot_indices(result, count: int = 6) -> np.ndarray:
@@ -44,8 +172,7 @@ def _snapshot_indices(result, count: int = 6) -> np.ndarray:
     n = result.n_cycles
     P = result.cols("px", "py", "pz")
     S = result.cols("sx", "sy", "sz")
-    _, _, L = _mechanism_plane(result)
-    L = L or 0.08
+    L = _length(_mechanism(result))
     step = np.linalg.norm(np.diff(P, axis=0), axis=1) + L * np.linalg.norm(
         np.diff(S, axis=0), axis=1
     )
@@ -66,60 +193,72 @@ def _snapshot_indices(result, count: int = 6) -> np.ndarray:
     return np.array(out)
 
 
-def plane_figure(result, path: str | Path) -> None:
-    """The mechanism's plane face-on: the circle and its pivot, the handle path, the handle
-    as a thick line with the virtual probe to the pivot, the device's force as arrows; on
-    runs where the user resists, the two finger forces."""
+def _no_overlap(fig, texts: list) -> list:
+    """Removes the texts (in priority order) that would overlap one kept before; returns
+    the window extents of those kept."""
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    kept = []
+    for txt in texts:
+        bb = txt.get_window_extent(r).expanded(1.08, 1.15)
+        if any(bb.overlaps(k) for k in kept):
+            txt.remove()
+        else:
+            kept.append(bb)
+    return [tuple(float(x) for x in k.extents) for k in kept]
+
+
+def plane_figure(result, path: str | Path, force_scale: float = FORCE_SCALE_M_PER_N) -> dict:
+    """The handle seen where the mechanism is clearest (VIEWS: a PlanarArm's circle
+    face-on, a Probe's plane edge-on, a PointPivot from the side, a LineGuide across): its
+    path, the handle as a thick line at moments of the run with the virtual probe to its tip,
+    the device's force as arrows (`force_scale` m per N, the same in every figure); on runs
+    where the user resists, the two finger forces. Returns what it drew:
+    {"title", "force_scale_m_per_n", "time_labels": kept labels' window extents}."""
     plt = _plt()
-    pivot, normal, L = _mechanism_plane(result)
-    if normal is None:
-        normal = [0.0, 0.0, 1.0]
-    u, v, _ = plane_basis(normal)
+    from matplotlib.colors import Normalize
+
+    mech = _mechanism(result)
+    L = _length(mech)
     P = result.cols("px", "py", "pz")
     S = result.cols("sx", "sy", "sz")
     F = result.cols("fx", "fy", "fz")
     F1 = result.cols("ff1x", "ff1y", "ff1z")
     F2 = result.cols("ff2x", "ff2y", "ff2z")
+    tips = P + L * S
+    view = VIEWS.get(mech["type"], _view_default)(mech, P, tips)
+    u, v = view.u, view.v
     contacts = result.info.get("grip_contacts", [-0.015, -0.05])
     resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
+    draw_tip = mech["type"] != "PlanarArm"  # a PlanarArm's tip is its pivot
 
     def uv(x):
         x = np.atleast_2d(x)
         return np.stack([x @ u, x @ v], axis=1)
 
-    L = L if L else 0.08
     grip_len = max(0.45 * L, abs(min(contacts)) + 0.01)
-    fmax = max(float(np.linalg.norm(F, axis=1).max()), 1e-9)
-    if resist:
-        fmax = max(fmax, float(np.linalg.norm(F1, axis=1).max()))
-    scale = 0.35 * L / max(fmax, 1.0)  # m per N: small forces look small
+    scale = float(force_scale)
 
-    fig, ax = plt.subplots(figsize=(7.0, 7.0), dpi=110)
-    if pivot is not None:
-        a = np.linspace(0, 2 * np.pi, 400)
-        pc = uv(pivot)[0]
-        ax.plot(
-            pc[0] + L * np.cos(a),
-            pc[1] + L * np.sin(a),
-            ls="--",
-            color="0.6",
-            lw=1,
-            label="constraint circle (virtual mechanism path)",
-        )
-        ax.plot(*pc, marker="o", color="k", ms=5)
-        ax.annotate("pivot", pc, textcoords="offset points", xytext=(6, -12), fontsize=8)
+    fig, ax = plt.subplots(figsize=(7.0, 7.0), dpi=110, layout="constrained")
     hp = uv(P)
     ax.plot(hp[:, 0], hp[:, 1], color="0.35", lw=0.8, label="handle path")
+    if draw_tip:
+        tp = uv(tips)
+        ax.plot(tp[:, 0], tp[:, 1], color="tab:brown", lw=0.8, ls="--", label="tip path")
     idx = _snapshot_indices(result)
     cmap = plt.get_cmap("viridis")
     t = result.t
-    for j, k in enumerate(idx):
-        c = cmap(j / max(len(idx) - 1, 1))
+    norm = Normalize(0.0, max(float(t[-1]), 1e-9))
+    labels = []
+    for k in idx:
+        c = cmap(norm(t[k]))
         p, s = P[k], S[k]
         back = uv(np.array([p - grip_len * s, p + 0.08 * L * s]))
         ax.plot(back[:, 0], back[:, 1], color=c, lw=5, solid_capstyle="round")
         probe = uv(np.array([p, p + L * s]))
         ax.plot(probe[:, 0], probe[:, 1], color=c, lw=0.8, ls=":")
+        if draw_tip:
+            ax.plot(*probe[1], marker="o", ms=3, color=c)
         f = uv(F[k])[0] * scale
         pu = uv(p)[0]
         if np.hypot(*f) > 1e-4 * L:
@@ -127,8 +266,8 @@ def plane_figure(result, path: str | Path) -> None:
                 "",
                 xy=pu + f,
                 xytext=pu,
-                arrowprops=dict(arrowstyle="-|>", color="crimson", lw=2.0),
                 zorder=6,
+                arrowprops=dict(arrowstyle="-|>", color="crimson", lw=2.0),
             )
         if resist and k == idx[-1]:
             for cnt, Ff, col in (
@@ -144,18 +283,17 @@ def plane_figure(result, path: str | Path) -> None:
                         xytext=pc_,
                         arrowprops=dict(arrowstyle="-|>", color=col, lw=1.3),
                     )
-        ax.annotate(
-            f"{t[k]:.2f} s",
-            uv(p - grip_len * s)[0],
-            fontsize=7,
-            color=c,
-            textcoords="offset points",
-            xytext=(3, 3),
-        )
+        labels.append((k, uv(p - grip_len * s)[0], c))
     # legend proxies
     ax.plot([], [], color=cmap(0.5), lw=5, label="handle (thick) and virtual probe (dotted)")
-    ax.annotate("", xy=(0, 0), xytext=(0, 0))
-    ax.plot([], [], color="crimson", lw=1.6, label=f"device force (1 N = {scale * 1e3:.1f} mm)")
+    mm = scale * 1e3
+    ax.plot(
+        [],
+        [],
+        color="crimson",
+        lw=1.6,
+        label=f"device force (1 N = {mm:.3g} mm, the same in every figure)",
+    )
     if resist:
         ax.plot(
             [],
@@ -165,55 +303,79 @@ def plane_figure(result, path: str | Path) -> None:
             label="finger forces at the end (1: nearer the handle origin)",
         )
         ax.plot([], [], color="tab:green", lw=1.3, label="finger 2 force")
-    # frame the action: the handle path, the drawn handles and the pivot
-    pts = [hp, uv(P - grip_len * S)]
-    if pivot is not None:
-        pts.append(uv(pivot))
+    # frame the action: the handle path, the drawn handles, the tips and the mechanism
+    pts = [hp, uv(P - grip_len * S)] + [uv(a) for a in view.anchors]
+    if draw_tip:
+        pts.append(uv(tips))
     allp = np.vstack(pts)
     lo, hi = allp.min(axis=0), allp.max(axis=0)
     pad = 0.12 * max(hi - lo) + 0.004
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    if view.draw is not None:
+        view.draw(ax, uv)
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel(f"u [m]  (u = {np.round(u, 3).tolist()})")
     ax.set_ylabel(f"v [m]  (v = {np.round(v, 3).tolist()})")
     desc = result.scenario.data["description"].split(":")[0].strip()
-    ax.set_title(f"{result.scenario.name}: {desc}\nplane seen face-on", fontsize=10)
+    title = textwrap.fill(f"{result.scenario.name}: {desc}", 70) + f"\n{view.title}"
+    ax.set_title(title, fontsize=10)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
     ax.grid(alpha=0.25)
-    fig.tight_layout()
-    fig.savefig(path)
+    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+    fig.colorbar(
+        sm, ax=ax, shrink=0.5, fraction=0.04, pad=0.02, label="time of the drawn handle [s]"
+    )
+    # time labels: the first, the last and the largest force first; none overlapping
+    f = np.linalg.norm(F, axis=1)
+    first = {int(idx[0]), int(idx[-1]), int(idx[np.argmax(f[idx])])}
+    order = sorted(labels, key=lambda x: (x[0] not in first, x[0]))
+    box = dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8)
+    texts = []
+    for k, pos, c in order:
+        away = uv(-S[k])[0]  # past the handle's end, away from the probe
+        away = away / max(float(np.hypot(*away)), 1e-12)
+        texts.append(
+            ax.annotate(
+                f"{t[k]:.2f} s",
+                pos,
+                fontsize=7,
+                color=c,
+                textcoords="offset points",
+                xytext=tuple(12 * away),
+                ha="center",
+                va="center",
+                bbox=box,
+                zorder=8,
+            )
+        )
+    kept = _no_overlap(fig, texts)
+    fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
+    return {"title": title, "force_scale_m_per_n": scale, "time_labels": kept}
 
 
-def time_figure(result, path: str | Path) -> None:
-    """Force (magnitude; along and across the path), distance from the circle, angles on
-    the circle, and, where the user resists, the finger forces across the stylus."""
-    plt = _plt()
-    pivot, normal, _ = _mechanism_plane(result)
-    t = result.t
-    P = result.cols("px", "py", "pz")
-    F = result.cols("fx", "fy", "fz")
+# ---------------------------------------------------------------------------------------
+# time plots: one panel per quantity the mechanism has, no empty panels
+
+
+def _panel_force(ax, result, mech, t, F) -> None:
     fmag = np.linalg.norm(F, axis=1)
-    resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
-    mech = result.scenario.data["mechanism"]
-    probe = mech["type"] == "Probe"  # a plane: the tip's height and the normal force
-    rows = (3 if pivot is not None or probe else 1) + (1 if resist else 0)
-    fig, axes = plt.subplots(rows, 1, figsize=(7.5, 2.1 * rows + 0.6), dpi=110, sharex=True)
-    axes = np.atleast_1d(axes)
-    ax = axes[0]
     ax.plot(t, fmag, color="crimson", label="|f| device")
-    if pivot is not None:
-        n = np.asarray(normal, dtype=float)
+    if mech["type"] == "PlanarArm":
+        n = np.asarray(mech["normal"], dtype=float)
         n /= np.linalg.norm(n)
-        w = P - pivot
+        w = result.cols("px", "py", "pz") - np.asarray(mech["pivot"])
         w = w - np.outer(w @ n, n)
         rad = w / np.linalg.norm(w, axis=1)[:, None]
         tan = np.cross(n, rad)
-        ax.plot(t, np.sum(F * tan, axis=1), color="tab:orange", lw=0.9, label="along the path")
+        ft = np.sum(F * tan, axis=1)
+        ax.plot(t, ft, color="tab:orange", lw=0.9, label="along the path")
         ax.plot(
             t,
-            np.linalg.norm(F - np.sum(F * tan, axis=1)[:, None] * tan, axis=1),
+            np.linalg.norm(F - ft[:, None] * tan, axis=1),
             color="tab:purple",
             lw=0.9,
             label="across the path",
@@ -224,92 +386,136 @@ def time_figure(result, path: str | Path) -> None:
     top = max(float(fmag.max()), float(fh.max()), 0.1)
     ax.set_ylim(min(ax.get_ylim()[0], -0.05 * top), 1.35 * top)
     ax.legend(fontsize=7, ncol=4, loc="upper right", framealpha=0.9)
-    ax.grid(alpha=0.3)
-    if probe:
-        _probe_panels(result, axes[1], axes[2], mech, t, F)
-    if pivot is None:
-        _finish_time_figure(fig, axes, result, path, resist, normal, t, F)
-        return
-    ax = axes[1]
+
+
+def _panel_distance_log(ax, result, mech, t, F) -> None:
+    """dist (from where the mechanism allows) on a log scale, with the 1 mm line."""
+    from ..sim.geometry import geometry_of
+
+    g = geometry_of(mech)
     floor = 1e-3  # [mm]: the plot's floor on its log scale
     dmm = np.maximum(result.col("dist") * 1e3, floor)
     ax.plot(t, dmm, color="k")
     ax.axhline(1.0, color="tab:red", ls="--", lw=0.8, label="1 mm")
-    ax.set_ylabel("distance from\nthe circle [mm]")
+    what = f"{g.point} distance from\n{g.target}" if g else "distance from the\nnearest placement"
+    ax.set_ylabel(f"{what} [mm]")
     ax.set_yscale("log")
     ax.set_ylim(floor, max(30.0, 2 * float(dmm.max())))
     ax.legend(fontsize=7, loc="upper right")
-    ax.grid(alpha=0.3)
-    ax = axes[2]
-    if pivot is not None:
-        ax.plot(t, np.degrees(np.unwrap(result.col("arm_pos_angle"))), label="handle position")
-        sty = np.degrees(np.unwrap(result.col("arm_stylus_angle")))
-        ax.plot(t, sty, lw=3.5, alpha=0.45, label="handle (stylus) angle")
-        ax.plot(t, np.degrees(result.col("theta_star0")), ls="--", label="mechanism θ* (eq. 25)")
-        ax.plot(t, np.degrees(result.col("theta0")), ls=":", label="mechanism θ (nearest)")
-        ax.set_ylabel("angle on the\ncircle [deg]")
-        lo, hi = ax.get_ylim()
-        ax.set_ylim(lo, hi + 0.35 * (hi - lo))
-        ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
-    ax.grid(alpha=0.3)
-    _finish_time_figure(fig, axes, result, path, resist, normal, t, F)
 
 
-def _probe_panels(result, ax_h, ax_f, mech: dict, t, F) -> None:
-    """A Probe's plane: the tip's height above it, and the force along its normal against
-    Kp times the depth (unilateral: the plane pushes only while the tip is behind it)."""
-    n = np.asarray(mech["plane_normal"], dtype=float)
+def _panel_angles(ax, result, mech, t, F) -> None:
+    ax.plot(t, np.degrees(np.unwrap(result.col("arm_pos_angle"))), label="handle position")
+    sty = np.degrees(np.unwrap(result.col("arm_stylus_angle")))
+    ax.plot(t, sty, lw=3.5, alpha=0.45, label="handle (stylus) angle")
+    ax.plot(t, np.degrees(result.col("theta_star0")), ls="--", label="mechanism θ* (eq. 25)")
+    ax.plot(t, np.degrees(result.col("theta0")), ls=":", label="mechanism θ (nearest)")
+    ax.set_ylabel("angle on the\ncircle [deg]")
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + 0.35 * (hi - lo))
+    ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
+
+
+def _panel_tip_height(ax, result, mech, t, F) -> None:
+    """The tip's signed height above the surface (the log's dist_normal)."""
+    h = result.col("dist_normal")
+    ax.plot(t, h * 1e3, color="k", lw=1.0, label="tip height")
+    ax.axhline(
+        0.0,
+        color="tab:red",
+        ls="--",
+        lw=0.8,
+        label="the plane" if mech["type"] == "Probe" else "the point / line",
+    )
+    ax.fill_between(
+        t, h * 1e3, 0.0, where=h < 0, color="tab:red", alpha=0.15, label="tip behind it"
+    )
+    if mech["type"] != "Probe":
+        ax.plot(
+            t, result.col("dist_across") * 1e3, color="tab:blue", lw=0.9, label="tip offset across"
+        )
+    what = "the plane" if mech["type"] == "Probe" else "it, along its normal"
+    ax.set_ylabel(f"tip height above\n{what} [mm]")
+    ax.legend(fontsize=7, loc="lower left", ncol=2)
+
+
+def _panel_normal_force(ax, result, mech, t, F) -> None:
+    """Force along the normal against Kp times the depth (unilateral: the surface pushes
+    only while the tip is behind it)."""
+    key = "plane_normal" if "plane_normal" in mech else "normal"
+    n = np.asarray(mech[key], dtype=float)
     n /= np.linalg.norm(n)
-    P = result.cols("px", "py", "pz")
-    S = result.cols("sx", "sy", "sz")
-    h = (P - np.asarray(mech["plane_point"])) @ n + mech["length"] * (S @ n)
-    ax_h.plot(t, h * 1e3, color="k", lw=1.0)
-    ax_h.axhline(0.0, color="tab:red", ls="--", lw=0.8, label="the plane")
-    ax_h.fill_between(t, h * 1e3, 0.0, where=h < 0, color="tab:red", alpha=0.15,
-                      label="tip behind the plane")
-    ax_h.set_ylabel("tip height above\nthe plane [mm]")
-    ax_h.legend(fontsize=7, loc="lower left")
-    ax_h.grid(alpha=0.3)
+    h = result.col("dist_normal")
     kp = float(result.info["controller_model"]["kp"][0])  # the resolved Kp along x
     depth = np.maximum(-h, 0.0) if mech.get("unilateral") else -h
-    ax_f.plot(t, F @ n, color="crimson", label="device force along the normal")
-    ax_f.plot(t, kp * depth, color="0.3", ls=":", lw=1.2, label=f"Kp × depth (Kp = {kp:g} N/m)")
-    ax_f.set_ylabel("force along the\nnormal [N]")
-    lo, hi = ax_f.get_ylim()
-    ax_f.set_ylim(lo, hi + 0.35 * (hi - lo))
-    ax_f.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
-    ax_f.grid(alpha=0.3)
+    ax.plot(t, F @ n, color="crimson", label="device force along the normal")
+    ax.plot(t, kp * depth, color="0.3", ls=":", lw=1.2, label=f"Kp × depth (Kp = {kp:g} N/m)")
+    ax.set_ylabel("force along the\nnormal [N]")
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + 0.35 * (hi - lo))
+    ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
 
 
-def _finish_time_figure(fig, axes, result, path, resist: bool, normal, t, F) -> None:
+def _panel_fingers(ax, result, mech, t, F) -> None:
+    S = result.cols("sx", "sy", "sz")
+    F1 = result.cols("ff1x", "ff1y", "ff1z")
+    F2 = result.cols("ff2x", "ff2y", "ff2z")
+    normal = mech.get("normal", mech.get("plane_normal", [0.0, 0.0, 1.0]))
+    across = np.cross(np.asarray(normal, dtype=float), S)
+    ax.plot(t, np.sum(F1 * across, axis=1), color="tab:blue", label="finger 1 (across stylus)")
+    ax.plot(t, np.sum(F2 * across, axis=1), color="tab:green", label="finger 2 (across stylus)")
+    ax.plot(t, np.sum(F * across, axis=1), color="crimson", lw=0.8, label="device (across stylus)")
+    ax.axhline(0, color="0.5", lw=0.6)
+    ax.set_ylabel("force [N]")
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + 0.45 * (hi - lo))
+    ax.legend(fontsize=7, ncol=3, loc="upper right", framealpha=0.9)
+
+
+#: mechanism type -> the panels after the force (a type not listed: the distance alone)
+PANELS = {
+    "PlanarArm": (_panel_distance_log, _panel_angles),
+    "Probe": (_panel_tip_height, _panel_normal_force),
+    "PointPivot": (_panel_distance_log, _panel_tip_height),
+    "LineGuide": (_panel_distance_log, _panel_tip_height),
+}
+
+
+def time_figure(result, path: str | Path) -> dict:
+    """Force over time (for a PlanarArm also along and across the path), then the panels
+    of PANELS for the mechanism (a PlanarArm: distance from the circle and angles on it; a
+    Probe: the tip's height above its plane and the force along the normal against Kp times
+    the depth; a PointPivot or LineGuide: the tip's distance and height), and, where the user
+    resists, the finger forces across the stylus. Returns {"panels": the y labels}."""
     plt = _plt()
+    mech = _mechanism(result)
+    t = result.t
+    F = result.cols("fx", "fy", "fz")
+    resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
+    panels = [_panel_force, *PANELS.get(mech["type"], (_panel_distance_log,))]
     if resist:
-        ax = axes[-1]
-        S = result.cols("sx", "sy", "sz")
-        F1 = result.cols("ff1x", "ff1y", "ff1z")
-        F2 = result.cols("ff2x", "ff2y", "ff2z")
-        across = np.cross(np.asarray(normal if normal is not None else [0, 0, 1.0]), S)
-        ax.plot(t, np.sum(F1 * across, axis=1), color="tab:blue", label="finger 1 (across stylus)")
-        ax.plot(t, np.sum(F2 * across, axis=1), color="tab:green", label="finger 2 (across stylus)")
-        ax.plot(
-            t, np.sum(F * across, axis=1), color="crimson", lw=0.8, label="device (across stylus)"
-        )
-        ax.axhline(0, color="0.5", lw=0.6)
-        ax.set_ylabel("force [N]")
-        lo, hi = ax.get_ylim()
-        ax.set_ylim(lo, hi + 0.45 * (hi - lo))
-        ax.legend(fontsize=7, ncol=3, loc="upper right", framealpha=0.9)
+        panels.append(_panel_fingers)
+    rows = len(panels)
+    fig, axes = plt.subplots(rows, 1, figsize=(7.5, 2.1 * rows + 0.6), dpi=110, sharex=True)
+    axes = np.atleast_1d(axes)
+    for ax, panel in zip(axes, panels):
+        panel(ax, result, mech, t, F)
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     fig.suptitle(f"{result.scenario.name}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
+    out = {"panels": [ax.get_ylabel() for ax in axes]}
     plt.close(fig)
+    return out
 
 
-def write_figures(result, out_dir: str | Path) -> list[Path]:
+def write_figures(
+    result, out_dir: str | Path, force_scale: float = FORCE_SCALE_M_PER_N
+) -> list[Path]:
+    """plane.png and time.png of a run in out_dir (created); one force scale for all."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    plane_figure(result, out / "plane.png")
+    plane_figure(result, out / "plane.png", force_scale)
     time_figure(result, out / "time.png")
     return [out / "plane.png", out / "time.png"]
