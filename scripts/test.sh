@@ -33,7 +33,7 @@ build/cpp/examples/02_custom_mechanism_cpp | tail -n 3
 .venv/bin/python examples/python/01_omni_loop.py | tail -n 3
 
 echo "== Python: ruff"
-.venv/bin/ruff check python tests/python examples/python
+.venv/bin/ruff check python tests/python tests/reference examples/python
 
 echo "== Python: pytest"
 set +e
