@@ -156,5 +156,5 @@ def test_follow_offsets_and_a_push_in_handle_axes():
     np.testing.assert_allclose(targets[1000].p - T0[:3, 3], [0.01, 0.02, 0.0], atol=1e-12)
     # the push acts along the stylus (handle z), fully on between the ramps, then stops
     np.testing.assert_allclose(targets[1500].force, 2.0 * T0[:3, 2], atol=1e-12)
-    assert np.all(targets[2000].force == 0.0) or np.linalg.norm(targets[2000].force) < 1e-12
+    assert np.linalg.norm(targets[2000].force) < 1e-12
     assert targets[1500].segment == 1
