@@ -72,7 +72,7 @@ def _run_one(scenario, out_dir: Path, seed, progress: bool, engine: str = "compi
     size = estimate_csv_bytes(rows, cols)
     if size > LARGE_LOG_BYTES:
         print(
-            f"virtmech: warning: {scenario.name}: log.csv will be about {size / 2**30:.1f} GB "
+            f"virtmech: warning: {scenario.name}: log.csv will be about {_size(size)} "
             f"({rows:,} rows of about {cols} columns, {scenario.duration_s:g} s at "
             f"{1 / S['controller']['period_s']:g} Hz)",
             file=sys.stderr,
@@ -84,6 +84,14 @@ def _run_one(scenario, out_dir: Path, seed, progress: bool, engine: str = "compi
     write_run(result, out, log=False)
     write_figures(result, out)
     return metrics(result)
+
+
+def _size(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1000
+    raise AssertionError  # pragma: no cover
 
 
 def cmd_scenarios(args) -> int:
