@@ -267,7 +267,8 @@ def main(argv: list[str] | None = None) -> int:
         where = f"virtmech {args.command}" if "args" in locals() and args.command else "virtmech"
         msg = str(e)
         if not msg.startswith("virtmech"):
-            msg = f"{where}: " + (msg if len(e.messages) == 1 else "\n  " + "\n  ".join(e.messages))
+            n = len(e.messages)
+            msg = f"{where}: " + (msg if n == 1 else f"{n} mistakes:\n  " + "\n  ".join(e.messages))
         print(msg, file=sys.stderr)
         return 2
     except BrokenPipeError:
