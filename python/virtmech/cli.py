@@ -1,29 +1,97 @@
 """The ``virtmech`` command (also ``python -m virtmech``).
 
-virtmech demo [--out DIR]             every shipped scenario, summary.json, index.html
+virtmech demo [--out DIR] [--only NAME...]   every shipped scenario, summary.json, index.html
 virtmech run SCENARIO [--out DIR]     one scenario (a TOML path or a shipped name)
+             [--seed N] [--duration S]
              [--engine python]        ... with the simulation loop in Python (the reference)
 virtmech scenarios                    the shipped scenarios
+virtmech schema                       the JSON Schema of the scenario format
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
+
+A mistake in the input (a scenario, a flag, a path; virtmech.errors.UserError) is reported
+as one message on stderr, with exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import sys
 import time
 from pathlib import Path
 
+from .errors import UserError
+
+SEED_MAX = 2**63 - 1
+
+
+def _require_sim(command: str) -> None:
+    """The [sim] extra's packages, or a UserError saying how to install them."""
+    for module in ("mujoco", "matplotlib", "tqdm"):
+        try:
+            __import__(module)
+        except ImportError:
+            raise UserError(
+                f"virtmech {command}: the simulation needs the [sim] extra ({module} is not "
+                "installed); install it with: pip install 'virtmech[sim]'"
+            ) from None
+
+
+def _out_dir(path: str | Path, flag: str = "--out") -> Path:
+    """The output folder, created; a UserError naming the flag if it cannot be."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".virtmech-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as e:
+        raise UserError(
+            f"{flag} {path}: cannot create or write the output folder ({e.strerror or e}); "
+            "expected a folder you can write to"
+        ) from None
+    return out
+
 
 def _run_one(scenario, out_dir: Path, seed, progress: bool, engine: str = "compiled") -> dict:
     from . import sim
-    from .sim.output import metrics, write_run
+    from .sim.output import (
+        LARGE_LOG_BYTES,
+        CsvLog,
+        estimate_csv_bytes,
+        metrics,
+        write_run,
+    )
     from .viz import write_figures
 
-    result = sim.run(scenario, seed=seed, progress=progress, engine=engine)
-    write_run(result, out_dir)
-    write_figures(result, out_dir)
+    out = _out_dir(out_dir)
+    S = scenario.data
+    rows = int(round(S["duration_s"] / S["controller"]["period_s"])) + 1
+    cols = 140  # about: the exact count depends on the device and the mechanism
+    size = estimate_csv_bytes(rows, cols)
+    if size > LARGE_LOG_BYTES:
+        print(
+            f"virtmech: warning: {scenario.name}: log.csv will be about {_size(size)} "
+            f"({rows:,} rows of about {cols} columns, {scenario.duration_s:g} s at "
+            f"{1 / S['controller']['period_s']:g} Hz)",
+            file=sys.stderr,
+        )
+    with CsvLog(out / "log.csv") as csv:
+        result = sim.run(
+            scenario, seed=seed, progress=progress, engine=engine, sink=csv, spill_dir=out
+        )
+    write_run(result, out, log=False)
+    write_figures(result, out)
     return metrics(result)
+
+
+def _size(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1000
+    raise AssertionError  # pragma: no cover
 
 
 def cmd_scenarios(args) -> int:
@@ -37,19 +105,30 @@ def cmd_scenarios(args) -> int:
     return 0
 
 
+def cmd_schema(args) -> int:
+    from .scenarios import json_schema
+
+    print(json.dumps(json_schema(), indent=2))
+    return 0
+
+
 def cmd_run(args) -> int:
     from . import scenarios as sc
 
-    try:
-        s = sc.load(args.scenario)
-        if args.duration is not None:
+    _require_sim("run")
+    s = sc.load(args.scenario)
+    if args.duration is not None:
+        try:
             s = s.with_overrides(duration_s=args.duration)
-    except sc.ScenarioError as e:
-        print(f"virtmech run: {e}", file=sys.stderr)
-        return 2
+        except sc.ScenarioError as e:
+            raise UserError(*[f"--duration {args.duration:g}: {m}" for m in e.messages]) from None
     out = Path(args.out) if args.out else Path("out") / s.name
+    t0 = time.perf_counter()
     m = _run_one(s, out, args.seed, not args.quiet, args.engine)
-    print(f"{s.name}: wrote {out}/log.csv, run.json, plane.png, time.png")
+    print(
+        f"{s.name}: wrote {out}/log.csv, run.json, plane.png, time.png "
+        f"({time.perf_counter() - t0:.2f} s wall)"
+    )
     _print_metrics({s.name: m})
     return 0
 
@@ -70,12 +149,20 @@ def _print_metrics(runs: dict) -> None:
 
 def cmd_demo(args) -> int:
     from . import scenarios as sc
+
+    _require_sim("demo")
     from .sim.output import write_summary
     from .viz import write_index
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    names = args.only or sc.names()
+    known = sc.names()
+    unknown = [n for n in args.only or () if n not in known]
+    if unknown:
+        raise UserError(
+            f"--only: no shipped scenario named {', '.join(map(repr, unknown))}; expected "
+            f"names from `virtmech scenarios`: {', '.join(known)}"
+        )
+    out = _out_dir(args.out)
+    names = args.only or known
     runs, entries = {}, []
     t0 = time.perf_counter()
     for name in names:
@@ -106,15 +193,35 @@ def cmd_bench(argv: list[str]) -> int:
     return int(bench.main(argv))
 
 
+def _seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected an integer 0 to 2**63-1, got {text!r}"
+        ) from None
+    if not 0 <= v <= SEED_MAX:
+        raise argparse.ArgumentTypeError(f"expected an integer 0 to 2**63-1, got {text}")
+    return v
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's errors (usage, then the message; exit status 2) without the usage block:
+    one line naming the flag, the value and what was expected, and where to read more."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="virtmech",
         description="virtmech: haptic devices rendered as virtual mechanisms (Luecke & Beckman).",
     )
     p.add_argument("--version", action="version", version=f"virtmech {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     d = sub.add_parser("demo", help="run every shipped scenario and write the report")
     d.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
     d.add_argument("--only", nargs="+", metavar="NAME", help="run only these scenarios")
@@ -122,7 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run one scenario (a TOML file or a shipped name)")
     r.add_argument("scenario", help="SCENARIO.toml or a name from `virtmech scenarios`")
     r.add_argument("--out", help="output folder (default: out/<name>)")
-    r.add_argument("--seed", type=int, help="random seed (default: the scenario's)")
+    r.add_argument("--seed", type=_seed, help="random seed, 0 to 2**63-1 (default: the scenario's)")
     r.add_argument("--duration", type=float, help="override duration_s [s]")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument(
@@ -132,24 +239,54 @@ def build_parser() -> argparse.ArgumentParser:
         help="the simulation loop: compiled (default) or the Python reference (slower)",
     )
     sub.add_parser("scenarios", help="list the shipped scenarios")
+    sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)
     return p
 
 
+COMMANDS = {"demo": cmd_demo, "run": cmd_run, "scenarios": cmd_scenarios, "schema": cmd_schema}
+
+
 def main(argv: list[str] | None = None) -> int:
+    """The command line; returns the exit status: 0, 2 for a mistake in the input (one
+    message on stderr), 141 when stdout is closed early (`virtmech scenarios | head -3`)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "bench":
-        return cmd_bench(argv[1:])
-    p = build_parser()
-    args = p.parse_args(argv)
-    if args.command == "demo":
-        return cmd_demo(args)
-    if args.command == "run":
-        return cmd_run(args)
-    if args.command == "scenarios":
-        return cmd_scenarios(args)
-    p.print_help()
-    return 0
+    try:
+        if argv and argv[0] == "bench":
+            return cmd_bench(argv[1:])
+        p = build_parser()
+        args = p.parse_args(argv)
+        if args.command in COMMANDS:
+            rc = COMMANDS[args.command](args)
+        else:
+            p.print_help()
+            rc = 0
+        sys.stdout.flush()  # here, so that a closed pipe is reported here
+        return rc
+    except UserError as e:
+        where = f"virtmech {args.command}" if "args" in locals() and args.command else "virtmech"
+        msg = str(e)
+        if not msg.startswith("virtmech"):
+            n = len(e.messages)
+            msg = f"{where}: " + (msg if n == 1 else f"{n} mistakes:\n  " + "\n  ".join(e.messages))
+        print(msg, file=sys.stderr)
+        return 2
+    except BrokenPipeError:
+        _quiet_stdout()
+        return 141  # 128 + SIGPIPE, as a program killed by the closed pipe
+    except KeyboardInterrupt:
+        print("virtmech: interrupted", file=sys.stderr)
+        return 130
+
+
+def _quiet_stdout() -> None:
+    """After a BrokenPipeError: stdout pointed at /dev/null so that Python's flush at exit
+    does not fail again (and print a second error)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout replaced (e.g. by a test's capture)
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

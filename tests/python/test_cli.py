@@ -8,6 +8,7 @@ import subprocess
 import sys
 import types
 
+import numpy as np
 import pytest
 
 pytest.importorskip("mujoco")
@@ -144,3 +145,196 @@ def test_run_shows_a_progress_bar_on_stderr(tmp_path, capsys):
     assert main(["run", "planar3r-fig9", "--duration", "0.2", "--out", str(tmp_path)]) == 0
     err = capsys.readouterr().err
     assert "planar3r-fig9" in err and "100%" in err and "#" in err
+
+
+# ---------------------------------------------------------------------------------------
+# every mistake of the user: exit status 2, one message on stderr naming the file, key or
+# flag, the value and what was expected, never a traceback
+
+
+def _mistake(capsys, argv: list[str]) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert err.startswith("virtmech")
+    return err
+
+
+def _scenario(tmp_path, old: str, new: str, name: str = "bad.toml"):
+    text = sc.path_of("omni-fig10").read_text()
+    assert old in text
+    p = tmp_path / name
+    p.write_text(text.replace(old, new, 1))
+    return p
+
+
+def _cli(*args: str, code: str = "") -> subprocess.CompletedProcess:
+    prog = f"import sys\n{code}\nfrom virtmech.cli import main\nsys.exit(main(sys.argv[1:]))"
+    return subprocess.run(
+        [sys.executable, "-c", prog, *args], capture_output=True, text=True, timeout=120
+    )
+
+
+@pytest.mark.parametrize("argv", [["demo", "--quiet"], ["run", "omni-fig9", "--quiet"]])
+def test_without_the_sim_extra_says_how_to_install_it(argv, tmp_path):
+    p = _cli(*argv, "--out", str(tmp_path), code="sys.modules['mujoco'] = None")
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr
+    assert "mujoco" in p.stderr and "pip install 'virtmech[sim]'" in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "omni-fig9").exists()
+
+
+def test_a_zero_normal_names_the_file_and_the_key(tmp_path, capsys):
+    bad = _scenario(tmp_path, "normal = [0.0, 0.0, 1.0]", "normal = [0, 0, 0]")
+    err = _mistake(capsys, ["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"])
+    assert f"{bad}: mechanism.normal: value [0, 0, 0] is out of range" in err
+    assert "non-zero" in err
+
+
+def test_a_value_the_constructors_reject_names_the_file_and_the_key(tmp_path, capsys):
+    # a zero direction out of the plane passes the format's checks; PlanarArm rejects it
+    bad = _scenario(tmp_path, "zero_direction = [1.0, 0.0, 0.0]", "zero_direction = [0, 0, 1]")
+    err = _mistake(capsys, ["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"])
+    assert f"{bad}: mechanism.zero_direction: expected a unit vector in the plane" in err
+    assert "[0, 0, 1]" in err
+    assert not (tmp_path / "o" / "log.csv").exists()
+
+
+def test_an_unreachable_start_pose_names_the_file_and_initial(tmp_path, capsys):
+    bad = _scenario(tmp_path, "offset = [0.028, 0.010, 0.0]", "offset = [0.5, 0.0, 0.0]")
+    err = _mistake(capsys, ["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"])
+    assert f"{bad}: initial: the device cannot reach the start pose" in err
+
+
+def test_demo_only_an_unknown_name_lists_the_known_ones(tmp_path, capsys):
+    err = _mistake(capsys, ["demo", "--only", "omni-fig99", "--out", str(tmp_path)])
+    assert "--only" in err and "'omni-fig99'" in err
+    for name in sc.names():
+        assert name in err
+    assert list(tmp_path.iterdir()) == []  # nothing run
+
+
+def test_a_negative_seed_names_the_flag(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["run", "omni-fig9", "--seed", "-5", "--out", str(tmp_path)])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "--seed" in err and "-5" in err and "expected an integer 0 to" in err
+    assert "Traceback" not in err and "usage:" not in err
+
+
+def test_a_duration_flag_out_of_range_names_the_flag(tmp_path, capsys):
+    err = _mistake(capsys, ["run", "omni-fig9", "--duration", "-1", "--out", str(tmp_path)])
+    assert "--duration -1" in err and "duration_s: value -1" in err
+
+
+def test_an_output_folder_that_cannot_be_made_names_the_flag(capsys):
+    err = _mistake(capsys, ["run", "omni-fig9", "--out", "/proc/nope", "--quiet"])
+    assert "--out /proc/nope: cannot create or write the output folder" in err
+
+
+def test_a_folder_as_the_scenario_is_named(tmp_path, capsys):
+    err = _mistake(capsys, ["run", str(tmp_path), "--quiet"])
+    assert f"{tmp_path}: is a folder; expected a scenario file (.toml)" in err
+
+
+def test_a_closed_stdout_is_not_an_error():
+    # `virtmech scenarios | head -3`: stdout's reader gone before anything is written
+    code = "import os\nr, w = os.pipe()\nos.close(r)\nos.dup2(w, 1)"
+    p = _cli("scenarios", code=code)
+    assert p.returncode == 141, p.stderr  # 128 + SIGPIPE, as the shell reports a pipe's end
+    assert p.stderr == ""
+
+
+def test_a_duration_shorter_than_one_control_period_is_rejected(tmp_path, capsys):
+    bad = _scenario(tmp_path, "duration_s = 2.0", "duration_s = 1e-9")
+    err = _mistake(capsys, ["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"])
+    assert f"{bad}: duration_s: value 1e-09 is out of range" in err
+    assert "controller.period_s" in err
+
+
+@pytest.mark.parametrize("name", ["../../escape", "/tmp/abs", "a/b", ".hidden", "a b"])
+def test_a_name_that_is_not_a_plain_file_name_is_rejected(tmp_path, capsys, monkeypatch, name):
+    bad = _scenario(tmp_path, 'name = "omni-fig10"', f"name = {name!r}".replace("'", '"'))
+    monkeypatch.chdir(tmp_path)
+    err = _mistake(capsys, ["run", str(bad), "--quiet"])
+    assert f"{bad}: name: value {name!r} is not allowed; expected a plain file name" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]  # nothing written
+
+
+def test_every_mistake_of_a_file_is_reported_at_once(tmp_path, capsys):
+    text = sc.path_of("omni-fig10").read_text()
+    text = text.replace("normal = [0.0, 0.0, 1.0]", "normal = [0, 0, 0]")
+    text = text.replace("[human]", "[human]\nmood = 1")
+    text = text.replace("ramp_time_s = 0.02", "ramp_time_s = -1")
+    bad = tmp_path / "three.toml"
+    bad.write_text(text)
+    err = _mistake(capsys, ["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"])
+    for key in ("mechanism.normal", "human.mood", "controller.ramp_time_s"):
+        assert f"{bad}: {key}:" in err
+
+
+# ---------------------------------------------------------------------------------------
+# the log: streamed to log.csv block by block, the progress bar, the size warning
+
+
+def test_the_log_streams_in_blocks_and_keeps_none_in_memory(tmp_path):
+    from virtmech import sim
+
+    s = sc.load("planar3r-fig9").with_overrides(duration_s=0.5)
+    blocks = []
+    r = sim.run(s, sink=lambda rows, cols: blocks.append(rows.copy()), keep_log=False,
+                chunk_s=0.1)
+    assert r.log.shape[0] == 0  # nothing kept: only the sink saw the rows
+    assert max(len(b) for b in blocks) == 100 and len(blocks) == 6  # 501 rows, 100 at a time
+    whole = sim.run(s)  # one block: the same rows
+    assert np.array_equal(np.concatenate(blocks), whole.log)
+
+
+def test_a_large_log_is_kept_in_a_file_not_in_memory(tmp_path, monkeypatch):
+    from virtmech import sim
+    from virtmech.sim import loop
+
+    monkeypatch.setattr(loop, "LOG_IN_MEMORY_BYTES", 0)
+    s = sc.load("planar3r-fig9").with_overrides(duration_s=0.2)
+    r = sim.run(s, spill_dir=tmp_path, chunk_s=0.05)
+    assert isinstance(r.log, np.memmap) and r.log.shape[0] == 201
+    assert np.isfinite(r.col("dist")).all()
+    assert list(tmp_path.iterdir()) == []  # removed at once, the mapping keeps it
+
+
+def test_a_log_over_the_limit_is_warned_about_with_its_size(tmp_path, capsys, monkeypatch):
+    import virtmech.sim.output as output
+
+    monkeypatch.setattr(output, "LARGE_LOG_BYTES", 1000)
+    assert main(["run", "planar3r-fig9", "--duration", "0.05", "--out", str(tmp_path),
+                 "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: planar3r-fig9: log.csv will be about" in err and "kB" in err
+
+
+def test_progress_percentages_match_the_simulated_time(tmp_path, capsys):
+    import re
+
+    assert main(["run", "planar3r-fig9", "--duration", "2.5", "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    shown = re.findall(r"(\d+)%\s+([\d.]+)/([\d.]+) s", err)
+    assert shown and shown[-1][0] == "100"
+    for pct, done, total in shown:
+        assert int(pct) == pytest.approx(100 * float(done) / float(total), abs=1)
+    wall = re.search(r"planar3r-fig9: 2.50 s simulated in ([\d.]+) (ms|s) wall", err)
+    assert wall and float(wall.group(1)) > 0
+
+
+def test_schema_prints_the_json_schema_of_the_format(capsys):
+    assert main(["schema"]) == 0
+    schema = json.loads(capsys.readouterr().out)
+    assert schema["$schema"].endswith("2020-12/schema")
+    props = schema["properties"]
+    assert props["duration_s"]["exclusiveMinimum"] == 0 and props["duration_s"]["maximum"] == 3600
+    assert props["physics"]["properties"]["rate_hz"]["default"] == 4000.0
+    mech = {v["properties"]["type"]["const"]: v for v in props["mechanism"]["oneOf"]}
+    assert set(mech) == {"PlanarArm", "PointPivot", "Probe", "LineGuide"}
+    assert "pivot" in mech["PlanarArm"]["required"]
+    assert mech["PlanarArm"]["additionalProperties"] is False

@@ -136,3 +136,49 @@ def test_overrides_are_validated():
     assert s.with_overrides(sensors={"noise_rad": 1e-4})["sensors"]["noise_rad"] == 1e-4
     with pytest.raises(sc.ScenarioError, match="duration_s: value -1"):
         s.with_overrides(duration_s=-1.0)
+
+
+def test_every_mistake_is_reported_at_once():
+    text = GOOD.replace("length = 0.08", "length = -0.08").replace(
+        "[device]", "[device]\nstifness = 3"
+    )
+    text += '\n[physics]\ngravity = "yes"\n'
+    with pytest.raises(sc.ScenarioError) as e:
+        sc.loads(text, "bad.toml")
+    assert isinstance(e.value, ValueError)
+    assert len(e.value.messages) == 3
+    msg = str(e.value)
+    for key in ("mechanism.length", "device.stifness", "physics.gravity"):
+        assert f"bad.toml: {key}:" in msg
+
+
+def test_directions_must_not_be_zero():
+    msg = _error(GOOD.replace("length = 0.08", "length = 0.08\nnormal = [0.0, 0.0, 0.0]"))
+    assert "mechanism.normal: value [0.0, 0.0, 0.0] is out of range; expected a non-zero" in msg
+
+
+@pytest.mark.parametrize("name", ["../../escape", "/abs", "a/b", "a\\\\b", ".x", ""])
+def test_names_are_plain_file_names(name):
+    msg = _error(GOOD.replace('name = "t"', f'name = "{name}"'))
+    assert "name: value" in msg and "expected a plain file name" in msg
+
+
+def test_a_duration_shorter_than_a_control_period_is_rejected():
+    msg = _error(GOOD.replace("duration_s = 1.0", "duration_s = 1e-9"))
+    assert "duration_s: value 1e-09 is out of range; expected at least one control period" in msg
+
+
+def test_defaults_are_not_shared_between_scenarios():
+    a = sc.loads(GOOD)
+    a["human"]["grip_contacts"].append(9.0)
+    assert sc.loads(GOOD)["human"]["grip_contacts"] == [-0.015, -0.05]
+
+
+def test_the_json_schema_has_every_default_of_the_format():
+    schema = sc.json_schema()
+    s = sc.loads(GOOD)
+    for table in ("controller", "physics", "sensors", "human"):
+        props = schema["properties"][table]["properties"]
+        for key, value in s[table].items():
+            if "default" in props[key]:
+                assert props[key]["default"] == value, (table, key)

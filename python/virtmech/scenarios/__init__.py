@@ -18,7 +18,16 @@ from typing import Any
 
 from .schema import ScenarioError
 
-__all__ = ["Scenario", "ScenarioError", "load", "loads", "names", "path_of", "validate"]
+__all__ = [
+    "Scenario",
+    "ScenarioError",
+    "json_schema",
+    "load",
+    "loads",
+    "names",
+    "path_of",
+    "validate",
+]
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -70,41 +79,51 @@ class Scenario:
 
 
 def validate(raw: dict[str, Any], source: str = "<string>") -> Scenario:
-    """Checks a parsed scenario; raises ScenarioError naming the key, the value and what
-    was expected."""
+    """Checks a parsed scenario; raises one ScenarioError listing every mistake (each naming
+    the source, the key, the value and what was expected). The checks between keys (e.g. the
+    physics rate against the control period) run once every key is valid on its own."""
     from .format import SCENARIO
     from .schema import check_table
 
     try:
         data = check_table("", raw, SCENARIO)
     except ScenarioError as e:
-        raise ScenarioError(f"{source}: {e}") from None
-    _check_consistency(data, source)
+        raise ScenarioError(*[f"{source}: {m}" for m in e.messages]) from None
+    errors = _consistency_errors(data)
+    if errors:
+        raise ScenarioError(*[f"{source}: {m}" for m in errors])
     return Scenario(data=data, source=source, raw=copy.deepcopy(raw))
 
 
-def _check_consistency(d: dict, source: str) -> None:
+def _consistency_errors(d: dict) -> list[str]:
+    errors = []
     c, p = d["controller"], d["physics"]
     sub = p["rate_hz"] * c["period_s"]
     if abs(sub - round(sub)) > 1e-9 or round(sub) < 1:
-        raise ScenarioError(
-            f"{source}: physics.rate_hz: value {p['rate_hz']:g} is out of range; expected a "
+        errors.append(
+            f"physics.rate_hz: value {p['rate_hz']:g} is out of range; expected a "
             f"whole multiple of the control rate {1.0 / c['period_s']:g} Hz"
+        )
+    if d["duration_s"] < c["period_s"]:
+        errors.append(
+            f"duration_s: value {d['duration_s']:g} is out of range; expected at least one "
+            f"control period (controller.period_s = {c['period_s']:g} s)"
         )
     for i, seg in enumerate(d["intent"]):
         if seg["action"] == "follow" and ("theta" in seg) == ("offsets" in seg):
-            raise ScenarioError(
-                f"{source}: intent[{i}]: missing required field; expected exactly one of "
+            errors.append(
+                f"intent[{i}]: missing required field; expected exactly one of "
                 "'theta' (a path along the mechanism) or 'offsets' (waypoints [m])"
             )
     q = d["initial"].get("q")
     if q is not None:
         n = 6 if d["device"]["type"] == "PhantomOmni" else 3
         if len(q) != n:
-            raise ScenarioError(
-                f"{source}: initial.q: expected {n} numbers (one per joint of "
+            errors.append(
+                f"initial.q: expected {n} numbers (one per joint of "
                 f"{d['device']['type']}), got {len(q)} values"
             )
+    return errors
 
 
 def loads(text: str, source: str = "<string>") -> Scenario:
@@ -114,6 +133,21 @@ def loads(text: str, source: str = "<string>") -> Scenario:
     except Exception as e:  # tomllib.TOMLDecodeError
         raise ScenarioError(f"{source}: not valid TOML: {e}") from None
     return validate(raw, source)
+
+
+def json_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of the scenario format, made from the same Fields as
+    the checks (virtmech.scenarios.format): for editors' completion and checking. The checks
+    between keys (validate) are not in it."""
+    from .format import SCENARIO
+    from .schema import json_schema_of
+
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "virtmech scenario",
+        "description": "A virtmech scenario file (TOML); format: docs/scenarios.md",
+        **json_schema_of(SCENARIO),
+    }
 
 
 def names() -> list[str]:
@@ -138,4 +172,13 @@ def load(name_or_path: str | Path) -> Scenario:
         p = path_of(str(name_or_path))
     if not p.exists():
         raise ScenarioError(f"{name_or_path}: no such file or shipped scenario")
-    return loads(p.read_text(encoding="utf-8"), str(p))
+    if p.is_dir():
+        raise ScenarioError(
+            f"{name_or_path}: is a folder; expected a scenario file (.toml) or one of the "
+            f"shipped names {', '.join(names())}"
+        )
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ScenarioError(f"{name_or_path}: cannot be read ({e}); expected a TOML file") from None
+    return loads(text, str(p))

@@ -14,13 +14,24 @@ def num(default=None, required=False, min=None, max=None, min_exclusive=False, d
     )
 
 
-def vec(n, default=None, required=False, doc=""):
+def vec(n, default=None, required=False, doc="", nonzero=False):
     kw = {} if default is None else {"default": default}
-    return Field("vector", length=n, required=required, doc=doc, **kw)
+    return Field("vector", length=n, required=required, doc=doc, nonzero=nonzero, **kw)
 
 
-def opt_vec(n, doc=""):
-    return Field("vector", length=n, doc=doc)
+def opt_vec(n, doc="", nonzero=False):
+    return Field("vector", length=n, doc=doc, nonzero=nonzero)
+
+
+def direction(default=None, required=False, doc="3 numbers, not all zero"):
+    """A direction: 3 numbers, not all zero (normalised where used)."""
+    if default is None and not required:
+        return opt_vec(3, doc, nonzero=True)
+    return vec(3, default, required, doc, nonzero=True)
+
+
+#: a scenario's name is the folder its outputs go to: a plain file name, never a path
+SAFE_NAME = r"[A-Za-z0-9_-][A-Za-z0-9._-]*"
 
 
 DEVICE_PHYSICS = {
@@ -72,29 +83,29 @@ MECHANISM = Field(
     variants={
         "PlanarArm": {
             "pivot": vec(3, required=True, doc="3 numbers [m]"),
-            "normal": vec(3, [0.0, 0.0, 1.0]),
+            "normal": direction([0.0, 0.0, 1.0]),
             "length": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
-            "zero_direction": opt_vec(3),
+            "zero_direction": direction(),
         },
         "PointPivot": {
             "point": vec(3, required=True, doc="3 numbers [m]"),
-            "normal": vec(3, [0.0, 0.0, 1.0]),
+            "normal": direction([0.0, 0.0, 1.0]),
             "length": num(0.1, min=0, min_exclusive=True, max=10),
-            "tangent": opt_vec(3),
+            "tangent": direction(),
             "unilateral": UNILATERAL,
         },
         "Probe": {
             "plane_point": vec(3, required=True, doc="3 numbers [m]"),
-            "plane_normal": vec(3, required=True, doc="3 numbers"),
+            "plane_normal": direction(required=True),
             "length": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
-            "tangent": opt_vec(3),
+            "tangent": direction(),
             "unilateral": UNILATERAL,
         },
         "LineGuide": {
             "point": vec(3, required=True, doc="3 numbers [m]"),
-            "direction": vec(3, required=True, doc="3 numbers"),
+            "direction": direction(required=True),
             "length": num(0.1, min=0, min_exclusive=True, max=10),
-            "normal": opt_vec(3),
+            "normal": direction(),
             "unilateral": UNILATERAL,
         },
     },
@@ -219,7 +230,13 @@ CHECKS = Field(
 SCENARIO = Field(
     "table",
     children={
-        "name": Field("string", required=True, doc="a string"),
+        "name": Field(
+            "string",
+            required=True,
+            pattern=SAFE_NAME,
+            doc="a plain file name (letters, digits, '-', '_', '.'; not starting with '.'): "
+            "the name of the run's output folder",
+        ),
         "description": Field("string", default=""),
         "duration_s": num(
             required=True, min=0, min_exclusive=True, max=3600, doc="a number [s] > 0"

@@ -1,15 +1,21 @@
 """A small schema engine for scenario files: every error names the key (as a dotted path),
-the value found and what was expected."""
+the value found and what was expected, and every error of a file is reported at once (one
+per key: a key's first mistake)."""
 
 from __future__ import annotations
 
+import copy
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..errors import UserError
 
-class ScenarioError(ValueError):
-    """A scenario file that does not match the format of docs/scenarios.md."""
+
+class ScenarioError(UserError, ValueError):
+    """A scenario file that does not match the format of docs/scenarios.md; `messages` holds
+    one line per mistake, str() all of them, one per line."""
 
 
 _MISSING = object()
@@ -43,6 +49,8 @@ class Field:
     variant_key: str | None = None
     doc: str = ""
     element: Field | None = None  # vectors of vectors
+    nonzero: bool = False  # vectors: a direction, not all zero
+    pattern: str | None = None  # strings: a regular expression the whole string matches
     extra: dict = field(default_factory=dict)
 
     # -------------------------------------------------------------------------------
@@ -100,6 +108,8 @@ class Field:
                     f"{path}: value {_show(v)} is not allowed; expected one of "
                     + ", ".join(repr(c) for c in self.choices)
                 )
+            if self.pattern is not None and not re.fullmatch(self.pattern, v):
+                raise ScenarioError(f"{path}: value {_show(v)} is not allowed; expected {self.doc}")
             return v
         if k == "vector":
             n = f"{self.length} numbers" if self.length else "a list of numbers"
@@ -113,17 +123,18 @@ class Field:
                 )
             if self.element is not None:
                 return [self.element.check(f"{path}[{i}]", x) for i, x in enumerate(v)]
-            return [self._number(f"{path}[{i}]", x) for i, x in enumerate(v)]
+            out = [self._number(f"{path}[{i}]", x) for i, x in enumerate(v)]
+            if self.nonzero and math.sqrt(sum(x * x for x in out)) < 1e-9:
+                raise ScenarioError(
+                    f"{path}: value {_show(v)} is out of range; expected a non-zero vector "
+                    "(a direction)"
+                )
+            return out
         if k == "axis":  # a choice string or a 3-vector
             if isinstance(v, str):
                 return Field("string", choices=self.choices).check(path, v)
             if isinstance(v, list):
-                out = Field("vector", length=3).check(path, v)
-                if math.hypot(*out) < 1e-9:
-                    raise ScenarioError(
-                        f"{path}: value {_show(v)} is out of range; expected a non-zero vector"
-                    )
-                return out
+                return Field("vector", length=3, nonzero=True).check(path, v)
             raise ScenarioError(
                 f"{path}: expected one of {', '.join(repr(c) for c in self.choices or ())} "
                 "or 3 numbers, "
@@ -136,11 +147,21 @@ class Field:
                 raise ScenarioError(
                     f"{path}: expected an array of tables ([[{path}]]), got {_show(v)}"
                 )
-            return [check_table(f"{path}[{i}]", x, self) for i, x in enumerate(v)]
+            out, errors = [], []
+            for i, x in enumerate(v):
+                try:
+                    out.append(check_table(f"{path}[{i}]", x, self))
+                except ScenarioError as e:
+                    errors += e.messages
+            if errors:
+                raise ScenarioError(*errors)
+            return out
         raise AssertionError(k)
 
 
 def check_table(path: str, v: Any, spec: Field) -> dict:
+    """The table v checked against spec, defaults filled in; raises one ScenarioError listing
+    every mistake found (unknown keys, missing keys, bad values)."""
     if not isinstance(v, dict):
         raise ScenarioError(f"{_where(path)}: expected a table, got {type(v).__name__} {_show(v)}")
     children = dict(spec.children or {})
@@ -157,21 +178,110 @@ def check_table(path: str, v: Any, spec: Field) -> dict:
         children[key] = Field("string", required=True, choices=tuple(spec.variants))
         children.update(spec.variants[name])
     out: dict = {}
+    errors: list[str] = []
     for k in v:
         if k not in children:
             where = f"[{path}]" if path else "the top level"
-            raise ScenarioError(
+            errors.append(
                 f"{path + '.' if path else ''}{k}: unknown key in {where}; expected one of "
                 + ", ".join(sorted(children))
             )
     for k, f in children.items():
         kpath = f"{path}.{k}" if path else k
-        if k in v:
-            out[k] = f.check(kpath, v[k])
-        elif f.required:
-            raise ScenarioError(f"{kpath}: missing required field ({f.doc or f.kind})")
-        elif f.kind == "table":
-            out[k] = check_table(kpath, {}, f) if not f.required else None
-        elif f.default is not _MISSING:
-            out[k] = f.default
+        try:
+            if k in v:
+                out[k] = f.check(kpath, v[k])
+            elif f.required:
+                errors.append(f"{kpath}: missing required field ({f.doc or f.kind})")
+            elif f.kind == "table":
+                out[k] = check_table(kpath, {}, f)
+            elif f.default is not _MISSING:
+                out[k] = copy.deepcopy(f.default)
+        except ScenarioError as e:
+            errors += e.messages
+    if errors:
+        raise ScenarioError(*errors)
     return out
+
+
+# ---------------------------------------------------------------------------------------
+# JSON Schema (for editors' completion and checking), from the same Fields
+
+
+def _json_number(f: Field, integer: bool = False) -> dict:
+    out: dict = {"type": "integer" if integer else "number"}
+    if f.min is not None:
+        out["exclusiveMinimum" if f.min_exclusive else "minimum"] = f.min
+    if f.max is not None:
+        out["exclusiveMaximum" if f.max_exclusive else "maximum"] = f.max
+    return out
+
+
+def json_schema_of(f: Field) -> dict:
+    """The JSON Schema (draft 2020-12) of one Field."""
+    k = f.kind
+    if k == "number":
+        out = _json_number(f)
+    elif k == "integer":
+        out = _json_number(f, integer=True)
+    elif k == "bool":
+        out = {"type": "boolean"}
+    elif k == "string":
+        out = {"type": "string"}
+        if f.choices:
+            out["enum"] = list(f.choices)
+        if f.pattern:
+            out["pattern"] = f"^{f.pattern}$"
+    elif k == "vector":
+        items = json_schema_of(f.element) if f.element is not None else {"type": "number"}
+        out = {"type": "array", "items": items}
+        if f.length is not None:
+            out["minItems"] = out["maxItems"] = f.length
+        if f.min_length is not None:
+            out["minItems"] = f.min_length
+    elif k == "axis":
+        out = {
+            "anyOf": [
+                {"type": "string", "enum": list(f.choices or ())},
+                {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+            ]
+        }
+    elif k in ("table", "tables"):
+        out = _json_table(f)
+        if k == "tables":
+            out = {"type": "array", "items": out}
+    else:  # pragma: no cover
+        raise AssertionError(k)
+    if f.doc:
+        out["description"] = f.doc
+    if f.default is not _MISSING:
+        out["default"] = f.default
+    return out
+
+
+def _json_object(children: dict[str, Field]) -> dict:
+    return {
+        "type": "object",
+        "properties": {k: json_schema_of(c) for k, c in children.items()},
+        "required": [k for k, c in children.items() if c.required],
+        "additionalProperties": False,
+    }
+
+
+def _json_table(f: Field) -> dict:
+    if f.variants is None:
+        return _json_object(f.children or {})
+    key = f.variant_key
+    assert key is not None
+    variants = []
+    for name, children in f.variants.items():
+        v = _json_object({key: Field("string", required=True), **(f.children or {}), **children})
+        v["properties"][key] = {"const": name}
+        v["title"] = f"{key} = {name!r}"
+        variants.append(v)
+    return {
+        "type": "object",
+        "required": [key],
+        "properties": {key: {"enum": list(f.variants)}},
+        "oneOf": variants,
+    }

@@ -5,7 +5,9 @@ Stable API (docs/simulation.md):
 
 - ``run(scenario, seed=None, progress=False, engine="compiled") -> SimResult``: runs a
   scenario (a ``virtmech.scenarios.Scenario``, a shipped name or a TOML path) headless;
-  ``engine="python"`` runs the Python reference of the compiled loop.
+  ``engine="python"`` runs the Python reference of the compiled loop; ``sink=`` receives
+  the log block by block as it is produced (``virtmech.sim.output.CsvLog`` writes log.csv
+  so), ``keep_log=False`` keeps none of it in memory.
 - ``SimResult``: ``.log`` (one row per control cycle), ``.columns``, ``.col(name)``,
   ``.sim_time_s``, ``.wall_time_s``, ``.info``; ``virtmech.sim.output.write_run`` writes
   ``log.csv`` and ``run.json``.
@@ -19,10 +21,17 @@ from typing import Any
 __all__ = ["SimResult", "build_mjcf", "run"]
 
 
-def run(scenario: Any, seed: int | None = None, progress: bool = False, engine: str = "compiled"):
+def run(
+    scenario: Any,
+    seed: int | None = None,
+    progress: bool = False,
+    engine: str = "compiled",
+    **streaming: Any,
+):
+    """virtmech.sim.loop.run: `streaming` takes sink, keep_log, chunk_s and spill_dir."""
     from .loop import run as _run
 
-    return _run(scenario, seed=seed, progress=progress, engine=engine)
+    return _run(scenario, seed=seed, progress=progress, engine=engine, **streaming)
 
 
 def __getattr__(name: str) -> Any:

@@ -16,10 +16,13 @@ MuJoCo physics at several kHz, modelled sensors, the human's wrench every physic
 from __future__ import annotations
 
 import math
+import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
@@ -233,31 +236,47 @@ class PlanarGeometry:
 
 
 class Progress:
-    """A one-line progress bar on stderr (on a terminal; elsewhere a line every 25 %)."""
+    """A progress bar on stderr (tqdm) in simulated seconds, then one line with the
+    scenario's simulated and wall time."""
 
     def __init__(self, label: str, total: float, enabled: bool):
-        self.label, self.total, self.enabled = label, total, enabled
-        self.tty = enabled and sys.stderr.isatty()
-        self.step = 1 if self.tty else 25
-        self.last = -1
+        self.label, self.total, self.enabled = label, float(total), enabled
+        self.bar = None
+        self.wall0 = time.perf_counter()
+        if enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(
+                total=self.total,
+                desc=f"{label:<16}",
+                file=sys.stderr,
+                ascii=" #",
+                ncols=80,
+                mininterval=0.2 if sys.stderr.isatty() else 5.0,
+                bar_format="{desc} [{bar}] {percentage:3.0f}%  {n:.2f}/{total:.2f} s",
+            )
 
     def update(self, done: float) -> None:
-        if not self.enabled:
+        if self.bar is not None:
+            self.bar.update(min(done, self.total) - self.bar.n)
+
+    def close(self, wall: float | None = None) -> None:
+        """Ends the bar at 100 % and writes the simulated and wall time (default: since the
+        bar was made)."""
+        if self.bar is None:
             return
-        pct = int(100 * done / self.total) if self.total > 0 else 100
-        pct -= pct % self.step
-        if pct == self.last:
-            return
-        self.last = pct
-        bar = "#" * (pct // 4) + "-" * (25 - pct // 4)
-        line = f"{self.label:<16} [{bar}] {pct:3d}%  {done:6.2f}/{self.total:.2f} s"
-        sys.stderr.write(f"\r{line}" if self.tty else f"{line}\n")
+        self.update(self.total)
+        self.bar.close()
+        wall = time.perf_counter() - self.wall0 if wall is None else wall
+        speed = f", {self.total / wall:.1f}x real time" if wall > 0 else ""
+        sys.stderr.write(
+            f"{self.label}: {self.total:.2f} s simulated in {_seconds(wall)} wall{speed}\n"
+        )
         sys.stderr.flush()
 
-    def close(self, wall: float) -> None:
-        if self.enabled:
-            sys.stderr.write(f"{'  ' if self.tty else self.label + ' '}({wall:.1f} s wall)\n")
-            sys.stderr.flush()
+
+def _seconds(t: float) -> str:
+    return f"{t * 1e3:.0f} ms" if t < 1.0 else f"{t:.2f} s"
 
 
 # ---------------------------------------------------------------------------------------
@@ -378,20 +397,112 @@ UNITS = {
 
 
 # ---------------------------------------------------------------------------------------
+# the log, block by block
+
+#: simulated seconds per block of the log (run's chunk_s)
+CHUNK_S = 10.0
+#: a log larger than this is kept in a memory-mapped file when run is given a spill_dir
+LOG_IN_MEMORY_BYTES = 256 * 2**20
+
+
+def _log_store(rows: int, cols: int, spill_dir) -> np.ndarray:
+    if spill_dir is None or rows * cols * 8 <= LOG_IN_MEMORY_BYTES:
+        return np.empty((rows, cols))
+    import tempfile
+
+    fd, path = tempfile.mkstemp(prefix=".log-", suffix=".npy", dir=spill_dir)
+    os.close(fd)
+    # column-major: each column (what metrics and figures read) is contiguous on disk
+    log = np.lib.format.open_memmap(
+        path, mode="w+", dtype=np.float64, shape=(rows, cols), fortran_order=True
+    )
+    try:
+        os.unlink(path)  # the mapping keeps the data until the log is released
+    except OSError:  # pragma: no cover (systems that cannot remove a mapped file)
+        pass
+    return log
+
+
+class _PostColumns:
+    """Fills the columns that follow from the logged state alone (the distance from the
+    path, the PlanarArm angles, the grip) in a block of rows."""
+
+    def __init__(self, columns: list[str], mechanism: dict, planar, contacts):
+        self.c = {name: i for i, name in enumerate(columns)}
+        self.mechanism, self.planar, self.contacts = mechanism, planar, contacts
+
+    def __call__(self, log: np.ndarray) -> None:
+        c = self.c
+        p_h = log[:, c["px"] : c["px"] + 3]
+        z_h = log[:, c["sx"] : c["sx"] + 3]
+        if self.planar is not None:
+            _, a_pos, a_sty = self.planar.measure_batch(p_h, z_h)
+        else:
+            a_pos = a_sty = np.full(len(log), math.nan)
+        d = distances(self.mechanism, p_h, z_h, log[:, c["e0"] : c["e0"] + 3])
+        _, F1, _, F2, mz = finger_forces_batch(
+            p_h, z_h, log[:, c["fx"] : c["fx"] + 6], self.contacts
+        )
+        log[:, c["dist"] : c["dist"] + len(DIST_COLUMNS)] = d.columns()
+        log[:, c["arm_pos_angle"]] = a_pos
+        log[:, c["arm_stylus_angle"]] = a_sty
+        log[:, c["ff1x"] : c["ff1x"] + 3] = F1
+        log[:, c["ff2x"] : c["ff2x"] + 3] = F2
+        log[:, c["grip_twist"]] = mz
+
+
+def _built(scenario, table: str, build: Callable[[], Any]) -> Any:
+    """build(), a constructor's ValueError (its message starts with the parameter's name)
+    reported as a ScenarioError naming the scenario's file and key."""
+    from ..scenarios import ScenarioError
+
+    try:
+        return build()
+    except ValueError as e:
+        msg = str(e)
+        head, sep, rest = msg.partition(": ")
+        head = head.strip()
+        if sep and (head == table or head.startswith(table + ".")):
+            key, msg = head, rest
+        elif sep and re.fullmatch(r"[A-Za-z_]\w*(\[\d+\])?", head):
+            key, msg = f"{table}.{head}", rest
+        else:
+            key = table
+        raise ScenarioError(f"{scenario.source}: {key}: {msg}") from None
+
+
+# ---------------------------------------------------------------------------------------
 # the loop
 
 
 def run(
-    scenario, seed: int | None = None, progress: bool = False, engine: str = "compiled"
+    scenario,
+    seed: int | None = None,
+    progress: bool = False,
+    engine: str = "compiled",
+    sink: Callable[[np.ndarray, list[str]], None] | None = None,
+    keep_log: bool = True,
+    chunk_s: float = CHUNK_S,
+    spill_dir: str | Path | None = None,
 ) -> SimResult:
     """Runs a scenario (a virtmech.scenarios.Scenario, a name or a path) headless.
     `seed` overrides the scenario's; same scenario and seed give the same log.
+
+    The log is produced in blocks of about `chunk_s` seconds of simulated time: `sink`, if
+    given, is called with each block and the column names (a rows x columns array, blocks in
+    order, a view valid during the call: e.g. virtmech.sim.output.CsvLog), so a long run can
+    be written as it goes. keep_log=False keeps no log in the result
+    (its `log` is empty: only the sink sees the rows). Otherwise a log larger than
+    LOG_IN_MEMORY_BYTES is kept in a memory-mapped file in `spill_dir` (if given; the file
+    is removed at once where the system allows and lives until the log is released).
 
     engine: "compiled" (the inner loop in C++, virtmech._core._SimKernel) or "python" (the
     same loop written in Python, cycle by cycle: the reference the compiled one is tested
     against, about 10x slower)."""
     if engine not in ("compiled", "python"):
         raise ValueError(f"engine: expected 'compiled' or 'python', got {engine!r}")
+    if not chunk_s > 0:
+        raise ValueError(f"chunk_s: expected a number > 0, got {chunk_s!r}")
     import mujoco
 
     from .. import scenarios as sc
@@ -402,9 +513,13 @@ def run(
     seed = S["seed"] if seed is None else int(seed)
     rng = np.random.default_rng(seed)
 
-    device = make_device(S["device"])
-    mech = make_mechanism(S["mechanism"])
-    ctrl = vm.Controller(device, mech, **controller_kwargs(S["controller"]))
+    device = _built(scenario, "device", lambda: make_device(S["device"]))
+    mech = _built(scenario, "mechanism", lambda: make_mechanism(S["mechanism"]))
+    ctrl = _built(
+        scenario,
+        "controller",
+        lambda: vm.Controller(device, mech, **controller_kwargs(S["controller"])),
+    )
     T_ctrl = S["controller"]["period_s"]
     n, m = device.dof, mech.dof
     actuated = np.asarray(device.actuated, dtype=bool)
@@ -427,7 +542,7 @@ def run(
     data = mujoco.MjData(model)
     C, Cinv, c0 = built.coupling.C, built.coupling.Cinv, built.coupling.c0
 
-    q0 = initial_joints(S, device, mech)
+    q0 = _built(scenario, "initial", lambda: initial_joints(S, device, mech))
     data.qpos[:] = C @ q0 + c0
     data.qvel[:] = 0.0
     mujoco.mj_forward(model, data)
@@ -443,7 +558,12 @@ def run(
     columns = log_columns(n, m)
     K = len(kernel_columns(n, m))
     N = int(round(S["duration_s"] / T_ctrl)) + 1
-    cycles_log = np.zeros((N, K))  # what the inner loop writes, row by row
+    # the log is produced block by block (`block` cycles at a time, about chunk_s of
+    # simulated time); each block is handed to `sink` and, unless the log would be too large
+    # to hold, kept in memory for the result (else in a memory-mapped file in spill_dir)
+    block = max(1, min(N, int(round(chunk_s / T_ctrl))))
+    log = _log_store(N, len(columns), spill_dir) if keep_log else None
+    buf = np.empty((block, len(columns)))  # the block being written, reused
     bar = Progress(scenario.name, S["duration_s"], progress)
 
     sensor_settings = SensorSettings(**S["sensors"])
@@ -464,12 +584,15 @@ def run(
         sensors=sensors,
     )
     inner = CompiledLoop(**loop_args) if engine == "compiled" else PythonLoop(**loop_args)
+    post = _PostColumns(columns, mech.to_dict(), planar, contacts)
 
     # stretches of cycles: split where a segment starts (the hand's plan needs the handle's
-    # pose there) and every `chunk` cycles (progress)
-    chunk = 1000
-    cuts = sorted(set(intent.start_cycles(N)) | set(range(0, N, chunk)) | {N})
+    # pose there), every 1000 cycles (progress) and at the ends of the blocks
+    cuts = sorted(
+        set(intent.start_cycles(N)) | set(range(0, N, 1000)) | set(range(0, N, block)) | {N}
+    )
     wall0 = time.perf_counter()
+    b0 = 0  # first cycle of the current block
     for k0, k1 in zip(cuts[:-1], cuts[1:]):
         T_h0 = device.forward(Cinv @ (data.qpos - c0))
         plan = intent.plan(k0, k1, T_h0)
@@ -484,30 +607,20 @@ def run(
             if sensor_settings.dropout_probability > 0.0
             else np.zeros(rows)
         )
-        inner.run(k0, plan, noise, dropout, cycles_log[k0:k1])
+        out = np.empty((rows, K))
+        inner.run(k0, plan, noise, dropout, out)
+        buf[k0 - b0 : k1 - b0, :K] = out
+        if k1 - b0 == block or k1 == N:
+            rows_done = buf[: k1 - b0]
+            post(rows_done)
+            if log is not None:
+                log[b0:k1] = rows_done
+            if sink is not None:
+                sink(rows_done, columns)
+            b0 = k1
         bar.update(k1 * T_ctrl)
     wall = time.perf_counter() - wall0
-    bar.update(S["duration_s"])
     bar.close(wall)
-
-    # what follows from the logged state alone, for all cycles at once
-    log = np.empty((N, len(columns)))
-    log[:, :K] = cycles_log
-    c = {name: i for i, name in enumerate(columns)}
-    p_h = log[:, c["px"] : c["px"] + 3]
-    z_h = log[:, c["sx"] : c["sx"] + 3]
-    if planar is not None:
-        _, a_pos, a_sty = planar.measure_batch(p_h, z_h)
-    else:
-        a_pos = a_sty = np.full(N, math.nan)
-    d = distances(mech.to_dict(), p_h, z_h, log[:, c["e0"] : c["e0"] + 3])
-    _, F1, _, F2, mz = finger_forces_batch(p_h, z_h, log[:, c["fx"] : c["fx"] + 6], contacts)
-    log[:, c["dist"] : c["dist"] + len(DIST_COLUMNS)] = d.columns()
-    log[:, c["arm_pos_angle"]] = a_pos
-    log[:, c["arm_stylus_angle"]] = a_sty
-    log[:, c["ff1x"] : c["ff1x"] + 3] = F1
-    log[:, c["ff2x"] : c["ff2x"] + 3] = F2
-    log[:, c["grip_twist"]] = mz
 
     info = {
         "device": device.to_dict(),
@@ -535,7 +648,7 @@ def run(
     return SimResult(
         scenario=scenario,
         columns=columns,
-        log=log,
+        log=log if log is not None else np.empty((0, len(columns))),
         sim_time_s=(N - 1) * T_ctrl,
         wall_time_s=wall,
         info=info,

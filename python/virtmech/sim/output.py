@@ -22,11 +22,51 @@ def _unit(col: str) -> str:
     return UNITS.get(stem, "")
 
 
-def write_log_csv(result: SimResult, path: Path) -> None:
-    """log.csv: a header of column names, then one row per control cycle ('%.10g')."""
-    np.savetxt(
-        path, result.log, delimiter=",", header=",".join(result.columns), comments="", fmt="%.10g"
-    )
+#: about how many bytes a value takes in log.csv ('%.10g' and a comma), for size estimates
+CSV_BYTES_PER_VALUE = 16
+#: the size of log.csv above which the command line warns
+LARGE_LOG_BYTES = 2**30
+
+
+class CsvLog:
+    """log.csv written block by block: a header of column names, then one row per control
+    cycle ('%.10g'). Use as the `sink` of virtmech.sim.run, then close() (or `with`); the
+    file is created with the first block."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.f = None
+        self.rows = 0
+
+    def __call__(self, rows: np.ndarray, columns: list[str]) -> None:
+        if self.f is None:
+            self.f = open(self.path, "w", encoding="utf-8", newline="")  # noqa: SIM115
+            self.f.write(",".join(columns) + "\n")
+        np.savetxt(self.f, rows, delimiter=",", fmt="%.10g")
+        self.rows += len(rows)
+
+    def close(self) -> None:
+        if self.f is not None:
+            self.f.close()
+
+    def __enter__(self) -> CsvLog:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def estimate_csv_bytes(rows: int, columns: int) -> int:
+    """About how large log.csv is for a log of rows x columns."""
+    return rows * columns * CSV_BYTES_PER_VALUE
+
+
+def write_log_csv(result: SimResult, path: Path, block_rows: int = 10000) -> None:
+    """log.csv: a header of column names, then one row per control cycle ('%.10g'), written
+    block_rows at a time."""
+    with CsvLog(path) as out:
+        for k in range(0, max(result.n_cycles, 1), block_rows):
+            out(result.log[k : k + block_rows], result.columns)
 
 
 def _jsonable(x):
@@ -72,11 +112,13 @@ def run_json(result: SimResult) -> dict:
     )
 
 
-def write_run(result: SimResult, out_dir: str | Path) -> Path:
-    """Writes log.csv and run.json into out_dir (created); returns out_dir."""
+def write_run(result: SimResult, out_dir: str | Path, log: bool = True) -> Path:
+    """Writes log.csv (unless log=False: it was streamed there during the run, see CsvLog)
+    and run.json into out_dir (created); returns out_dir."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    write_log_csv(result, out / "log.csv")
+    if log:
+        write_log_csv(result, out / "log.csv")
     (out / "run.json").write_text(json.dumps(run_json(result), indent=2) + "\n", encoding="utf-8")
     return out
 
