@@ -138,13 +138,26 @@ def _print_metrics(runs: dict) -> None:
         f"{'scenario':<16} {'to 1 mm [s]':>11} {'max after [mm]':>14} {'max |f| [N]':>11} "
         f"{'tau/limit':>9} {'passive':>8} {'E [mJ]':>8} {'x real':>7}"
     )
-    for name, m in runs.items():
-        t1 = m["time_to_1mm_s"]
+    from .sim.output import paper_order
+
+    missing = []
+
+    def cell(v, width: int, fmt: str, scale: float = 1.0) -> str:
+        if v is None or v != v:  # None or NaN: the metric does not apply to the run
+            missing.append(v)
+            return f"{'n/a':>{width}}"
+        return f"{v * scale:{width}{fmt}}"
+
+    for name in paper_order(runs):
+        m = runs[name]
         print(
-            f"{name:<16} {t1:11.3f} {m['dist_max_after_m'] * 1e3:14.3f} {m['force_max_n']:11.2f} "
-            f"{m['torque_fraction_max']:9.2f} {m['passive_torque_max']:8.2g} "
-            f"{m['energy_to_user_j'] * 1e3:8.2f} {m['real_time_factor']:7.1f}"
+            f"{name:<16} {cell(m['time_to_1mm_s'], 11, '.3f')} "
+            f"{cell(m['dist_max_after_m'], 14, '.3f', 1e3)} {cell(m['force_max_n'], 11, '.2f')} "
+            f"{cell(m['torque_fraction_max'], 9, '.2f')} {cell(m['passive_torque_max'], 8, '.2g')} "
+            f"{cell(m['energy_to_user_j'], 8, '.2f', 1e3)} {cell(m['real_time_factor'], 7, '.1f')}"
         )
+    if missing:
+        print("n/a: the metric does not apply to that run (its run.json says why)")
 
 
 def cmd_demo(args) -> int:

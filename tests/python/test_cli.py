@@ -338,3 +338,24 @@ def test_schema_prints_the_json_schema_of_the_format(capsys):
     assert set(mech) == {"PlanarArm", "PointPivot", "Probe", "LineGuide"}
     assert "pivot" in mech["PlanarArm"]["required"]
     assert mech["PlanarArm"]["additionalProperties"] is False
+
+
+def test_metrics_table_is_in_paper_order_and_says_na(capsys):
+    from virtmech.cli import _print_metrics
+
+    m = dict(
+        time_to_1mm_s=0.2,
+        dist_max_after_m=0.001,
+        force_max_n=1.0,
+        torque_fraction_max=0.5,
+        passive_torque_max=0.0,
+        energy_to_user_j=0.001,
+        real_time_factor=30.0,
+    )
+    _print_metrics(
+        {"omni-fig12": m, "omni-fig10": dict(m, time_to_1mm_s=float("nan")), "omni-fig9": m}
+    )
+    lines = capsys.readouterr().out.splitlines()
+    assert [ln.split()[0] for ln in lines[1:4]] == ["omni-fig9", "omni-fig10", "omni-fig12"]
+    assert lines[2].split()[1] == "n/a" and "nan" not in "".join(lines)
+    assert lines[-1].startswith("n/a:")
