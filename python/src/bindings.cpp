@@ -212,6 +212,23 @@ ErrorVelocity error_velocity_from(const std::string& s) {
       ("error_velocity: expected 'relative' or 'handle', got '" + s + "'").c_str());
 }
 
+// a chain's joints (type, axis, origin, limits), handle and base into d
+void chain_to_dict(const KinematicChain& chain, nb::dict& d) {
+  nb::list js;
+  for (const Joint& j : chain.joints()) {
+    nb::dict jd;
+    jd["type"] = j.type == JointType::kRevolute ? "revolute" : "prismatic";
+    jd["axis"] = to_list(j.axis);
+    jd["origin"] = Eigen::Matrix4d(j.origin.matrix());
+    jd["lower"] = j.lower;
+    jd["upper"] = j.upper;
+    js.append(jd);
+  }
+  d["joints"] = js;
+  d["handle"] = Eigen::Matrix4d(chain.handle().matrix());
+  d["base"] = Eigen::Matrix4d(chain.base().matrix());
+}
+
 nb::list status_names(std::uint32_t s) {
   static const std::pair<std::uint32_t, const char*> names[] = {
       {status::kRamping, "ramping"},
@@ -567,19 +584,7 @@ NB_MODULE(_core, m) {
       .def("to_dict", [](const SerialChain& a) {
         nb::dict d;
         d["type"] = "SerialChain";
-        nb::list js;
-        for (const Joint& j : a.chain().joints()) {
-          nb::dict jd;
-          jd["type"] = j.type == JointType::kRevolute ? "revolute" : "prismatic";
-          jd["axis"] = to_list(j.axis);
-          jd["origin"] = Eigen::Matrix4d(j.origin.matrix());
-          jd["lower"] = j.lower;
-          jd["upper"] = j.upper;
-          js.append(jd);
-        }
-        d["joints"] = js;
-        d["handle"] = Eigen::Matrix4d(a.chain().handle().matrix());
-        d["base"] = Eigen::Matrix4d(a.chain().base().matrix());
+        chain_to_dict(a.chain(), d);
         d["length_scale"] = a.length_scale();
         return d;
       });
@@ -615,7 +620,8 @@ NB_MODULE(_core, m) {
          "__init__",
          [](SerialDevice* self, nb::handle joints, nb::handle actuated, nb::handle handle,
             nb::handle base, nb::handle torque_limit, double max_force, double max_torque,
-            double stiffness, double damping, const std::string& name) {
+            double stiffness, double damping, const std::string& name, nb::handle coupling,
+            nb::handle coupling_offset) {
            std::vector<Joint> js = to_joints(joints);
            DeviceLimits L;
            for (nb::handle h : actuated) L.actuated.push_back(nb::cast<bool>(h));
@@ -630,14 +636,44 @@ NB_MODULE(_core, m) {
            L.damping = damping;
            const Pose H = handle.is_none() ? Pose::Identity() : to_pose("handle", handle);
            const Pose B = base.is_none() ? Pose::Identity() : to_pose("base", base);
-           new (self) SerialDevice(name, KinematicChain(B, js, H), L);
+           const long n = static_cast<long>(js.size());
+           if (coupling.is_none() && coupling_offset.is_none()) {
+             new (self) SerialDevice(name, KinematicChain(B, js, H), L);
+           } else {
+             const JointMatrix C = coupling.is_none() ? JointMatrix(JointMatrix::Identity(n, n))
+                                                      : JointMatrix(to_matrix("coupling", coupling, n, n));
+             const JointVector c0 = coupling_offset.is_none()
+                                        ? JointVector(JointVector::Zero(n))
+                                        : JointVector(to_vector("coupling_offset", coupling_offset, n));
+             new (self) SerialDevice(name, KinematicChain(B, js, H), L, C, c0);
+           }
          },
          "joints"_a, "actuated"_a, "handle"_a = nb::none(), "base"_a = nb::none(),
          "torque_limit"_a = nb::none(), "max_force"_a = kInf, "max_torque"_a = kInf,
          "stiffness"_a = 500.0, "damping"_a = 1.0, "name"_a = "SerialDevice",
+         "coupling"_a = nb::none(), "coupling_offset"_a = nb::none(),
          "A serial-chain device with any actuation mask. joints: sequence of Joint; actuated: "
          "one bool per joint; torque_limit (dof,) [N·m or N]; max_force [N]; max_torque [N·m]; "
-         "stiffness [N/m] and damping [N·s/m]: the default translational gains.")
+         "stiffness [N/m] and damping [N·s/m]: the default translational gains; coupling C "
+         "(dof, dof) and coupling_offset c0 (dof,): the device's joints q map to the chain's "
+         "as s = C q + c0 (default: the chain's own).")
+      .def("to_dict", [](const SerialDevice& d) {
+        nb::dict out;
+        out["type"] = "Device";
+        out["name"] = d.name();
+        chain_to_dict(d.chain(), out);
+        nb::list act;
+        for (int i = 0; i < d.dof(); ++i) act.append(d.actuated(i));
+        out["actuated"] = act;
+        out["torque_limit"] = Eigen::VectorXd(d.torque_limit());
+        out["coupling"] = Eigen::MatrixXd(d.coupling());
+        out["coupling_offset"] = Eigen::VectorXd(d.coupling_offset());
+        out["max_force"] = d.max_force();
+        out["max_torque"] = d.max_torque();
+        out["stiffness"] = d.stiffness();
+        out["damping"] = d.damping();
+        return out;
+      })
       .def_prop_ro("joints", [](const SerialDevice& self) { return self.chain().joints(); },
                    "The joints of the underlying chain (in chain coordinates).")
       .def_prop_ro(

@@ -8,7 +8,7 @@ import pytest
 import virtmech.scenarios as sc
 
 PAPER = [f"{d}-fig{n}" for d in ("omni", "planar3r") for n in (9, 10, 11, 12)]
-SHIPPED = [*PAPER, "omni-contact"]
+SHIPPED = [*PAPER, "omni-contact", "arm7-contact"]
 
 GOOD = """
 name = "t"
@@ -83,7 +83,7 @@ def test_wrong_type_names_key_value_and_expectation():
     assert "sensors.counts_per_rev: expected an integer, got float 1.5" in msg
     msg = _error(GOOD.replace('type = "PhantomOmni"', 'type = "Falcon"'))
     assert (
-        "device.type: value 'Falcon' is not allowed; expected one of 'PhantomOmni', 'Planar3R'"
+        "device.type: value 'Falcon' is not allowed; expected one of 'PhantomOmni', 'Planar3R', 'Device'"
         in msg
     )
 

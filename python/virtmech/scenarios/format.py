@@ -47,6 +47,22 @@ DEVICE_PHYSICS = {
     "stylus_com": num(min=-0.2, max=0.2, doc="stylus centre of mass along the stylus [m]"),
 }
 
+#: one joint of a serial-chain device, as vm.Joint takes it (limits: none when omitted)
+DEVICE_JOINT = Field(
+    "tables",
+    required=True,
+    children={
+        "type": Field("string", required=True, choices=("revolute", "prismatic")),
+        "axis": direction(required=True, doc="3 numbers, not all zero, in the joint frame"),
+        "origin": vec(3, [0.0, 0.0, 0.0], doc="the joint frame's position in the previous [m]"),
+        "origin_rotation": vec(
+            3, [0.0, 0.0, 0.0], doc="the joint frame's rotation vector in the previous [rad]"
+        ),
+        "lower": num(min=-1e3, max=1e3, doc="lower limit [rad or m]; none when omitted"),
+        "upper": num(min=-1e3, max=1e3, doc="upper limit [rad or m]; none when omitted"),
+    },
+)
+
 DEVICE = Field(
     "table",
     required=True,
@@ -57,6 +73,18 @@ DEVICE = Field(
             "l2": num(0.13335, min=0.01, max=1.0),
             "max_force": num(3.3, min=0, min_exclusive=True, max=100),
             "motor_torque_limit": vec(3, [0.44, 0.44, 0.44]),
+            "actuated": Field(
+                "vector",
+                element=Field("bool"),
+                length=6,
+                default=[True, True, True, False, False, False],
+                doc="6 true or false: which joints have a motor (a fully actuated variant: "
+                "all true)",
+            ),
+            "gimbal_torque_limit": num(
+                0.1, min=0, min_exclusive=True, max=10,
+                doc="torque limit of a gimbal joint made actuated [N m]",
+            ),
             **DEVICE_PHYSICS,
         },
         "Planar3R": {
@@ -65,6 +93,21 @@ DEVICE = Field(
             "torque_limit": num(1.0, min=0, min_exclusive=True, max=1000),
             "max_force": num(5.0, min=0, min_exclusive=True, max=1000),
             "base_position": vec(3, [0.0, 0.0, 0.0]),
+            **DEVICE_PHYSICS,
+        },
+        "Device": {
+            "joints": DEVICE_JOINT,
+            "actuated": Field(
+                "vector", element=Field("bool"), required=True, doc="one true or false per joint"
+            ),
+            "torque_limit": Field(
+                "vector", required=True, doc="one limit per joint [N m or N]; 0 where passive"
+            ),
+            "max_force": num(min=0, min_exclusive=True, max=1000, doc="force limit [N]"),
+            "handle": vec(3, [0.0, 0.0, 0.0], doc="the handle in the last joint's frame [m]"),
+            "handle_rotation": vec(3, [0.0, 0.0, 0.0], doc="its rotation vector [rad]"),
+            "base_position": vec(3, [0.0, 0.0, 0.0], doc="the chain's base [m]"),
+            "base_rotation": vec(3, [0.0, 0.0, 0.0], doc="its rotation vector [rad]"),
             **DEVICE_PHYSICS,
         },
     },

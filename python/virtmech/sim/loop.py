@@ -53,15 +53,37 @@ def translation(p) -> np.ndarray:
     return T
 
 
-def make_device(d: dict):
-    """A vm device from a scenario's [device] table."""
-    if d["type"] == "PhantomOmni":
-        return vm.PhantomOmni(
-            l1=d["l1"],
-            l2=d["l2"],
-            max_force=d["max_force"],
-            motor_torque_limit=d["motor_torque_limit"],
-        )
+def _pose(position, rotation) -> np.ndarray:
+    T = translation(position)
+    T[:3, :3] = vm.so3_exp(rotation)
+    return T
+
+
+def _omni(d: dict):
+    omni = vm.PhantomOmni(
+        l1=d["l1"], l2=d["l2"], max_force=d["max_force"], motor_torque_limit=d["motor_torque_limit"]
+    )
+    if list(d["actuated"]) == [True, True, True, False, False, False]:
+        return omni
+    # the same Omni with other joints actuated (a fully actuated variant, to compare with):
+    # its chain, joint map and limits, and motors where asked
+    limits = list(d["motor_torque_limit"]) + [d["gimbal_torque_limit"]] * 3
+    return vm.Device(
+        omni.joints,
+        d["actuated"],
+        handle=omni.handle,
+        base=omni.base,
+        torque_limit=[t if a else 0.0 for t, a in zip(limits, d["actuated"])],
+        max_force=d["max_force"],
+        stiffness=omni.stiffness,
+        damping=omni.damping,
+        name="PhantomOmni",  # the Omni's physical model and frame conventions
+        coupling=omni.coupling,
+        coupling_offset=omni.coupling_offset,
+    )
+
+
+def _planar3r(d: dict):
     return vm.Planar3R(
         link1=d["link1"],
         link2=d["link2"],
@@ -69,6 +91,37 @@ def make_device(d: dict):
         torque_limit=d["torque_limit"],
         max_force=d["max_force"],
     )
+
+
+def _serial_device(d: dict):
+    inf = float("inf")
+    joints = [
+        vm.Joint(
+            j["type"],
+            j["axis"],
+            _pose(j["origin"], j["origin_rotation"]),
+            j.get("lower", -inf),
+            j.get("upper", inf),
+        )
+        for j in d["joints"]
+    ]
+    return vm.Device(
+        joints,
+        d["actuated"],
+        handle=_pose(d["handle"], d["handle_rotation"]),
+        base=_pose(d["base_position"], d["base_rotation"]),
+        torque_limit=d["torque_limit"],
+        max_force=d.get("max_force", inf),
+    )
+
+
+#: a scenario's [device] type -> the device it describes
+DEVICES = {"PhantomOmni": _omni, "Planar3R": _planar3r, "Device": _serial_device}
+
+
+def make_device(d: dict):
+    """A vm device from a scenario's [device] table."""
+    return DEVICES[d["type"]](d)
 
 
 def make_mechanism(m: dict):
