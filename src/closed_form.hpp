@@ -67,9 +67,10 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
 
 /// The angle x minimising -a cos(x - theta_p) + w_r acos(c + b cos(x - theta_o))^2 (a, b,
 /// w_r >= 0): a position term least at theta_p and a rotation angle least at theta_o, as
-/// for one revolute joint with weights isotropic per block. On the short arc between them.
-double arc_minimiser(double a, double theta_p, double b, double theta_o, double c,
-                     double w_r) noexcept;
+/// for one revolute joint with weights isotropic per block; theta_p and theta_o are the
+/// directions of the plane vectors p and o (any length). On the short arc between them.
+double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
+                     double c, double w_r) noexcept;
 
 /// Joint values of three revolute joints about x, y, z (in that order) giving the rotation
 /// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it).

@@ -168,8 +168,8 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
   const Eigen::Matrix3d M = rest_ * target.linear().transpose();
   const double nMn = normal_.dot(M * normal_);
   const double A = M.trace() - nMn, B = (skew(normal_) * M).trace();
-  const double x = detail::arc_minimiser(2.0 * w_p * length_ * r, std::atan2(vy, vx),
-                                         0.5 * std::hypot(A, B), std::atan2(B, A),
+  const double x = detail::arc_minimiser(2.0 * w_p * length_ * r, Eigen::Vector2d(vx, vy),
+                                         0.5 * std::hypot(A, B), Eigen::Vector2d(A, B),
                                          0.5 * (nMn - 1.0), w_r);
   theta.resize(1);
   theta[0] = x + 2.0 * M_PI * std::round((start[0] - x) / (2.0 * M_PI));  // nearest start
