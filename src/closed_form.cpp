@@ -154,7 +154,7 @@ Eigen::Matrix3d rotated(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& k, do
 }  // namespace
 
 void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
-                     const TiltCost& cost, double w_p, double w_r, const Eigen::Vector3d& hint,
+                     const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
                      Eigen::Matrix3d& R) noexcept {
   const Eigen::Vector3d u_r = -R_R.col(2);
   Eigen::Vector3d k = u_r.cross(axis);
@@ -169,7 +169,8 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
   const double c = phi_r.c * phi.c + phi_r.s * phi.s;  // cos(phi_r - phi)
   const double s = phi_r.s * phi.c - phi_r.c * phi.s;  // sin(phi_r - phi)
   if (kn < 1e-12) {  // u_r along the axis: tilt toward the hint, about u_r x hint
-    Eigen::Vector3d h = hint - hint.dot(axis) * axis;
+    const Eigen::Vector3d v = hint();
+    Eigen::Vector3d h = v - v.dot(axis) * axis;
     if (h.norm() < 1e-12) h = any_orthogonal(axis);
     R = rotated(R_R, u_r.cross(h).normalized(), c, std::abs(s));  // by |phi - phi_r|
     return;
@@ -364,7 +365,7 @@ Eigen::Vector3d tilt_to_plane_or_point(const Eigen::Vector3d& point, const Eigen
     cost.p1 = -2.0 * d * length;
   }
   Eigen::Matrix3d R;
-  tilt_about_axis(R_R, axis, cost, w_p, w_r, hint, R);
+  tilt_about_axis(R_R, axis, cost, w_p, w_r, LazyDirection([&] { return hint; }), R);
   return -R.col(2);
 }
 

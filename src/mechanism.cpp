@@ -253,8 +253,9 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
     cost.p1 = -2.0 * d * length_;
   }
   Eigen::Matrix3d R;
+  const auto start_direction = [&] { return wrist_direction(B, start.data() + wrist); };
   detail::tilt_about_axis(target.linear(), normal_, cost, w_p, w_r,
-                          wrist_direction(B, start.data() + wrist), R);
+                          detail::LazyDirection(start_direction), R);
   // the tip below the handle for that orientation, brought onto the plane (or left in
   // front of it when one-sided)
   Eigen::Vector3d tip = p_R + length_ * R.col(2);
