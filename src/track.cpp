@@ -71,13 +71,14 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
                   JointVector& theta) noexcept {
   Pose pose;
   Jacobian J;
-  return detail::track(mechanism, target, theta0, weights, options, theta, pose, J);
+  Vector6 error;
+  return detail::track(mechanism, target, theta0, weights, options, theta, pose, J, error);
 }
 
 TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                           const JointVector& theta0, const Vector6& weights,
                           const TrackOptions& options, JointVector& theta, Pose& pose,
-                          Jacobian& J) noexcept {
+                          Jacobian& J, Vector6& error) noexcept {
   const int n = mechanism.dof();
   TrackResult result;
   if (options.closed_form && mechanism.place(target, weights, theta0, theta)) {
@@ -88,6 +89,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     result.active = active_set(mechanism, theta, ev.g, result.active_upper);
     pose = ev.T;
     J = ev.J;
+    error = ev.e;
     return result;
   }
   theta = theta0;
@@ -208,6 +210,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
   result.residual = std::sqrt(std::max(ev.cost, 0.0));
   pose = ev.T;  // ev is always the evaluation at theta
   J = ev.J;
+  error = ev.e;
   return result;
 }
 
