@@ -18,9 +18,13 @@ bool isotropic_blocks(const Vector6& w, double& w_p, double& w_r) noexcept {
 
 namespace {
 
-// the position cost's derivatives in phi: g'(phi), g''(phi)
-void position_derivatives(const TiltCost& k, double phi, double& g1, double& g2) noexcept {
-  const double c = std::cos(phi), s = std::sin(phi);
+// an angle with its cosine and sine
+struct Angle {
+  double x, c, s;
+};
+
+// the position cost's derivatives in phi, g'(phi) and g''(phi), from c = cos(phi), s = sin(phi)
+void position_derivatives(const TiltCost& k, double c, double s, double& g1, double& g2) noexcept {
   if (k.one_sided && !(k.b * c > k.a)) {
     g1 = g2 = 0.0;
     return;
@@ -33,40 +37,63 @@ void position_derivatives(const TiltCost& k, double phi, double& g1, double& g2)
 }
 
 // the angle in [0, pi] minimising the position cost, nearest phi_r among minimisers
-double position_minimiser(const TiltCost& k, double phi_r) noexcept {
+Angle position_minimiser(const TiltCost& k, const Angle& phi_r) noexcept {
+  auto from_cosine = [](double c) {
+    c = std::min(1.0, std::max(-1.0, c));
+    return Angle{std::acos(c), c, std::sqrt(1.0 - c * c)};
+  };
   if (k.one_sided) {
-    if (!(k.b * std::cos(phi_r) > k.a)) return phi_r;  // already at zero cost
-    return k.b > 0.0 ? std::acos(std::min(1.0, std::max(-1.0, k.a / k.b))) : phi_r;
+    if (!(k.b * phi_r.c > k.a)) return phi_r;  // already at zero cost
+    return k.b > 0.0 ? from_cosine(k.a / k.b) : phi_r;
   }
-  if (k.p2 > 0.0) return std::acos(std::min(1.0, std::max(-1.0, -k.p1 / (2.0 * k.p2))));
-  if (k.p1 < 0.0) return 0.0;
-  if (k.p1 > 0.0) return M_PI;
+  if (k.p2 > 0.0) return from_cosine(-k.p1 / (2.0 * k.p2));
+  if (k.p1 < 0.0) return {0.0, 1.0, 0.0};
+  if (k.p1 > 0.0) return {M_PI, -1.0, 0.0};
   return phi_r;
 }
 
-// the root of f' in [lo, hi] where f' runs from - (at lo) to + (at hi), from x: Newton
-// steps kept inside the shrinking bracket, bisection where Newton would leave it.
-// derivatives(x, f1, f2) gives f'(x) and f''(x).
+// The root of f' in [lo, hi] where f' runs from - (at lo) to + (at hi), from x inside:
+// Newton steps kept inside the shrinking bracket, bisection where Newton would leave it.
+// derivatives(x, cos x, sin x, f1, f2) gives f'(x) and f''(x), so each step costs one
+// sincos; the root is returned with its cosine and sine, which the callers need next.
 template <typename Derivatives>
-double bracketed_newton(const Derivatives& derivatives, double lo, double hi, double x) noexcept {
-  // start inside: at an end f' may vanish without a minimum there (the stylus exactly along
-  // the axis is a saddle of the tilt)
-  const double inset = 1e-3 * (hi - lo);
-  x = std::min(std::max(x, lo + inset), hi - inset);
+Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi, double x) noexcept {
+  double last_step = 0.0;  // the last Newton step's length (0: none, or a bisection)
   for (int it = 0; it < 100; ++it) {
+    const double c = std::cos(x), s = std::sin(x);
     double f1, f2;
-    derivatives(x, f1, f2);
+    derivatives(x, c, s, f1, f2);
     if (f1 < 0.0) lo = x;
     else if (f1 > 0.0) hi = x;
-    else return x;
-    double next = f2 > 0.0 ? x - f1 / f2 : 0.5 * (lo + hi);
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // also NaN
-    if (std::abs(next - x) <= 1e-16 * (1.0 + std::abs(x)) || hi - lo <= 4e-16 * (1.0 + std::abs(hi))) {
-      return next;
+    else return {x, c, s};
+    const double rounding = 1e-16 * (1.0 + std::abs(x));
+    if (f2 > 0.0) {
+      const double step = f1 / f2, next = x - step;
+      // Converged: a step at rounding level (checked before the bracket, which it may
+      // leave by rounding: x is an end of it now), or one that leaves an error at rounding
+      // level. Newton's error falls as e' = K e^2, and with K ~ |step| / last_step^2 from
+      // the last two steps the step leaves about |step|^3 / last_step^2; stopping there
+      // saves the step after, which would only move x by rounding noise.
+      const double a = std::abs(step);
+      if (a <= rounding ||
+          (next > lo && next < hi && a * a * a <= rounding * last_step * last_step)) {
+        // cosine and sine at next from those at x: |step| is at most about 1e-9 here, so
+        // the second-order expansion is exact to rounding
+        const double d = -step;
+        return {next, c - s * d - 0.5 * c * d * d, s + c * d - 0.5 * s * d * d};
+      }
+      if (next > lo && next < hi) {
+        last_step = a;
+        x = next;
+        continue;
+      }
     }
-    x = next;
+    // Newton would leave the bracket (or f'' <= 0, or NaN): bisect
+    last_step = 0.0;
+    x = 0.5 * (lo + hi);
+    if (hi - lo <= 4e-16 * (1.0 + std::abs(hi))) return {x, std::cos(x), std::sin(x)};
   }
-  return x;
+  return {x, std::cos(x), std::sin(x)};
 }
 
 // for ang = acos(y) with s1 = sin(ang) >= 0 given: h = ang / s1 and dh/dy, so that
@@ -79,52 +106,76 @@ void acos_squared_terms(double y, double s1, double& ang, double& h, double& dh)
 
 // minimiser of f(phi) = w_p g(phi) + w_r (phi - phi_r)^2 between phi0 (g's minimiser) and
 // phi_r, where f' runs from - to +
-double solve_tilt(const TiltCost& k, double w_p, double w_r, double phi0, double phi_r) noexcept {
-  if (phi0 == phi_r || w_p == 0.0) return phi_r;
+Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
+                 const Angle& phi_r) noexcept {
+  if (phi0.x == phi_r.x || w_p == 0.0) return phi_r;
   if (w_r == 0.0) return phi0;
-  const double lo = std::min(phi0, phi_r), hi = std::max(phi0, phi_r);
-  // start at the minimiser of the two terms' quadratic models about their minimisers
-  // (g's curvature at its minimiser, from the side where it acts)
+  const double lo = std::min(phi0.x, phi_r.x), hi = std::max(phi0.x, phi_r.x);
+  // f' has one root in the bracket, so any start inside gives the same minimiser: g is
+  // p2 c^2 + p1 c (one-sided: that where b c > a, else 0) with p2 >= 0, so f'' is a concave
+  // function of c = cos(phi) (0 on a one-sided cost's flat part) and, c falling with phi,
+  // f'' is - then + then - along the bracket; f' falls from f'(lo) < 0 on the first part,
+  // rises through one root on the second and falls to f'(hi) > 0 on the third.
+  // Start at the minimiser of the two terms' quadratic models about their minimisers (g's
+  // curvature at its minimiser, from the side where it acts): with the weights far apart, as
+  // on an under-actuated device, it is within rounding of the root
   const double p2 = k.one_sided ? k.b * k.b : k.p2;
   const double p1 = k.one_sided ? -2.0 * k.a * k.b : k.p1;
-  const double c0 = std::cos(phi0), s0 = std::sin(phi0);
+  const double c0 = phi0.c, s0 = phi0.s;
   const double c_p = w_p * std::max(0.0, 2.0 * p2 * s0 * s0 - (2.0 * p2 * c0 + p1) * c0);
   const double c_r = 2.0 * w_r;
-  const double x0 = (c_p * phi0 + c_r * phi_r) / (c_p + c_r);
+  // strictly inside: at an end f' may vanish without a minimum there (the stylus exactly
+  // along the axis is a saddle of the tilt)
+  const double inset = 1e-12 * (hi - lo);
+  const double x0 = std::min(std::max((c_p * phi0.x + c_r * phi_r.x) / (c_p + c_r), lo + inset),
+                             hi - inset);
   return bracketed_newton(
-      [&](double x, double& f1, double& f2) {
+      [&](double x, double c, double s, double& f1, double& f2) {
         double g1, g2;
-        position_derivatives(k, x, g1, g2);
-        f1 = w_p * g1 + 2.0 * w_r * (x - phi_r);
+        position_derivatives(k, c, s, g1, g2);
+        f1 = w_p * g1 + 2.0 * w_r * (x - phi_r.x);
         f2 = w_p * g2 + 2.0 * w_r;
       },
       lo, hi, x0);
 }
 
+// R_R turned about the unit axis k by the angle whose cosine and sine are c and s
+// (Rodrigues' formula, column by column)
+Eigen::Matrix3d rotated(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& k, double c,
+                        double s) noexcept {
+  Eigen::Matrix3d R;
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d v = R_R.col(j);
+    R.col(j) = c * v + s * k.cross(v) + ((1.0 - c) * k.dot(v)) * k;
+  }
+  return R;
+}
+
 }  // namespace
 
 void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
-                     const TiltCost& cost, double w_p, double w_r, const Eigen::Vector3d& hint,
+                     const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
                      Eigen::Matrix3d& R) noexcept {
   const Eigen::Vector3d u_r = -R_R.col(2);
-  const double phi_r = std::atan2(u_r.cross(axis).norm(), u_r.dot(axis));
-  const double phi = solve_tilt(cost, w_p, w_r, position_minimiser(cost, phi_r), phi_r);
-  if (phi == phi_r) {
+  Eigen::Vector3d k = u_r.cross(axis);
+  const double kn = k.norm(), cr = u_r.dot(axis);
+  const Angle phi_r{std::atan2(kn, cr), cr, kn};
+  const Angle phi = solve_tilt(cost, w_p, w_r, position_minimiser(cost, phi_r), phi_r);
+  if (phi.x == phi_r.x) {
     R = R_R;
     return;
   }
   // turn u_r toward the axis by phi_r - phi, about u_r x axis
-  Eigen::Vector3d k = u_r.cross(axis);
-  double kn = k.norm();
+  const double c = phi_r.c * phi.c + phi_r.s * phi.s;  // cos(phi_r - phi)
+  const double s = phi_r.s * phi.c - phi_r.c * phi.s;  // sin(phi_r - phi)
   if (kn < 1e-12) {  // u_r along the axis: tilt toward the hint, about u_r x hint
-    Eigen::Vector3d h = hint - hint.dot(axis) * axis;
+    const Eigen::Vector3d v = hint();
+    Eigen::Vector3d h = v - v.dot(axis) * axis;
     if (h.norm() < 1e-12) h = any_orthogonal(axis);
-    k = u_r.cross(h).normalized();
-    R = Eigen::AngleAxisd(std::abs(phi - phi_r), k).toRotationMatrix() * R_R;
+    R = rotated(R_R, u_r.cross(h).normalized(), c, std::abs(s));  // by |phi - phi_r|
     return;
   }
-  k /= kn;
-  R = Eigen::AngleAxisd(phi_r - phi, k).toRotationMatrix() * R_R;
+  R = rotated(R_R, k / kn, c, s);
 }
 
 Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u) noexcept {
@@ -137,7 +188,8 @@ Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u
   } else {
     k /= s;
   }
-  return Eigen::AngleAxisd(std::atan2(s, c), k).toRotationMatrix() * R_R;
+  const double n = std::hypot(s, c);  // the angle's cosine and sine: (c, s) / n
+  return rotated(R_R, k, c / n, s / n);
 }
 
 Eigen::Vector3d TipSet::residual(const Eigen::Vector3d& q, bool& lifted) const noexcept {
@@ -313,7 +365,7 @@ Eigen::Vector3d tilt_to_plane_or_point(const Eigen::Vector3d& point, const Eigen
     cost.p1 = -2.0 * d * length;
   }
   Eigen::Matrix3d R;
-  tilt_about_axis(R_R, axis, cost, w_p, w_r, hint, R);
+  tilt_about_axis(R_R, axis, cost, w_p, w_r, LazyDirection([&] { return hint; }), R);
   return -R.col(2);
 }
 
@@ -378,47 +430,56 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
   return best;
 }
 
-double arc_minimiser(double a, double theta_p, double b, double theta_o, double c,
-                     double w_r) noexcept {
+double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
+                     double c, double w_r) noexcept {
   // f(x) = -a cos(x - theta_p) + w_r acos(y)^2, y = c + b cos(x - theta_o); both terms grow
   // with the distance to their own minimiser, so f's minimum lies on the short arc between
   // theta_p and theta_o (any other point is farther from both than some point on it)
-  const double span = std::remainder(theta_o - theta_p, 2.0 * M_PI);  // in [-pi, pi]
-  if (!(a > 0.0) || span == 0.0) return theta_o;
+  const double theta_p = std::atan2(p.y(), p.x());
+  const double cross = p.x() * o.y() - p.y() * o.x(), dot = p.dot(o);
+  const double span = std::atan2(cross, dot);  // theta_o - theta_p in [-pi, pi]
+  if (!(a > 0.0) || span == 0.0) return std::atan2(o.y(), o.x());
   if (!(w_r > 0.0) || !(b > 0.0)) return theta_p;
-  // on u in [0, |span|] from theta_p toward theta_o: f' runs from - to +
-  const double dir = span > 0.0 ? 1.0 : -1.0;
-  const double u = bracketed_newton(
-      [&](double t, double& f1, double& f2) {
-        const double x = theta_p + dir * t;
-        const double sp = std::sin(x - theta_p), cp = std::cos(x - theta_p);
-        const double so = std::sin(x - theta_o), co = std::cos(x - theta_o);
+  // on t in [0, |span|] from theta_p toward theta_o: f' runs from - to +. With x - theta_p =
+  // dir t and x - theta_o = dir (t - |span|), one sincos of t per step gives both terms
+  const double dir = span > 0.0 ? 1.0 : -1.0, width = std::abs(span);
+  const double n = std::hypot(cross, dot), cs = dot / n, ss = std::abs(cross) / n;
+  // Start at the minimiser of the two terms' quadratic models: a t^2 / 2 and
+  // w_r b (|span| - t)^2 (acos(c + b cos x)^2 ~ b x^2 near its minimum). Strictly inside,
+  // since at an end f' may vanish without a minimum there. Within a quarter turn both terms
+  // are convex (-a cos t, and acos(y)^2 for the distance to theta_o below pi/2), so f' has
+  // one root and the model's start, within rounding of it where one weight dominates, needs
+  // no margin; beyond, f' may have several and the margin keeps the start away from the ends
+  const double inset = (width <= 0.5 * M_PI ? 1e-12 : 1e-3) * width;
+  const double t0 = std::min(std::max(width * 2.0 * w_r * b / (a + 2.0 * w_r * b), inset),
+                             width - inset);
+  const Angle t = bracketed_newton(
+      [&](double, double ct, double st, double& f1, double& f2) {
+        const double so = dir * (st * cs - ct * ss), co = ct * cs + st * ss;
         const double y = std::min(1.0, std::max(-1.0, c + b * co));
         const double s1 = std::sqrt(std::max(0.0, 1.0 - y * y));  // sin of the angle
         double ang, h, dh;
         acos_squared_terms(y, s1, ang, h, dh);
         const double y1 = -b * so, y2 = -b * co;
-        const double dfx = a * sp - 2.0 * w_r * h * y1;
-        const double ddfx = a * cp - 2.0 * w_r * (dh * y1 * y1 + h * y2);
-        f1 = dir * dfx;  // d/dt = dir d/dx
-        f2 = ddfx;
+        f1 = a * st - dir * 2.0 * w_r * h * y1;  // d/dt = dir d/dx
+        f2 = a * ct - 2.0 * w_r * (dh * y1 * y1 + h * y2);
       },
-      // start at the minimiser of the two terms' quadratic models: a u^2 / 2 and
-      // w_r b (|span| - u)^2 (acos(c + b cos x)^2 ~ b x^2 near its minimum)
-      0.0, std::abs(span), std::abs(span) * 2.0 * w_r * b / (a + 2.0 * w_r * b));
-  return theta_p + dir * u;
+      0.0, width, t0);
+  return theta_p + dir * t.x;
 }
 
 Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept {
-  // M = Rx(a) Ry(b) Rz(c): M(1,2) = -sin a cos b, M(2,2) = cos a cos b give a (at the
-  // gimbal lock, |cos b| < 1e-12, a is free: the start's, within 1e-12 of M); then
-  // Rx(-a) M = Ry(b) Rz(c) gives b and c exactly, also close to the lock
-  const double a = std::hypot(M(1, 2), M(2, 2)) > 1e-12 ? std::atan2(-M(1, 2), M(2, 2))
-                                                        : start[0];
-  const double ca = std::cos(a), sa = std::sin(a);
-  // rows 0 and 1 of N = Rx(-a) M, and N(2, 2)
+  // M = Rx(a) Ry(b) Rz(c): M(1,2) = -sin a cos b, M(2,2) = cos a cos b give a, and its
+  // cosine and sine without a round trip through the angle (at the gimbal lock, |cos b| <
+  // 1e-12, a is free: the start's, within 1e-12 of M); then Rx(-a) M = Ry(b) Rz(c) gives b
+  // and c exactly, also close to the lock
+  const double cb = std::sqrt(M(1, 2) * M(1, 2) + M(2, 2) * M(2, 2));  // |cos b|
+  const bool lock = !(cb > 1e-12);
+  const double a = lock ? start[0] : std::atan2(-M(1, 2), M(2, 2));
+  const double ca = lock ? std::cos(a) : M(2, 2) / cb, sa = lock ? std::sin(a) : -M(1, 2) / cb;
+  // rows 0 and 1 of N = Rx(-a) M, and N(2, 2) (= |cos b| off the lock)
   const double n02 = M(0, 2), n10 = ca * M(1, 0) + sa * M(2, 0), n11 = ca * M(1, 1) + sa * M(2, 1);
-  const double n22 = -sa * M(1, 2) + ca * M(2, 2);
+  const double n22 = lock ? -sa * M(1, 2) + ca * M(2, 2) : cb;
   Eigen::Vector3d e1, e2;
   e1 << a, std::atan2(n02, n22), std::atan2(n10, n11);
   e2 << e1[0] + M_PI, M_PI - e1[1], e1[2] + M_PI;  // the other branch (cos b < 0)

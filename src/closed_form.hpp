@@ -29,12 +29,29 @@ struct TiltCost {
   double a = 0.0, b = 0.0;
 };
 
+/// A direction computed only where it is used: a reference to a callable returning it (a
+/// placement's start direction costs sines and cosines, and a tilt needs it only with the
+/// stylus exactly along the axis). The callable must outlive the call it is passed to.
+class LazyDirection {
+ public:
+  template <typename F>
+  explicit LazyDirection(const F& f) noexcept
+      : f_(&f), call_([](const void* g) noexcept -> Eigen::Vector3d {
+          return (*static_cast<const F*>(g))();
+        }) {}
+  Eigen::Vector3d operator()() const noexcept { return call_(f_); }
+
+ private:
+  const void* f_;
+  Eigen::Vector3d (*call_)(const void*) noexcept;
+};
+
 /// The handle orientation R minimising w_p * cost(cos angle(u, axis)) + w_r * angle(R, R_R)^2,
 /// u = -R z the stylus's tip-to-handle direction; R_R is the handle's orientation. Where
 /// u_R is along the axis, the stylus tilts toward `hint` (any length; the axis's
 /// orthogonal complement's first direction if that is degenerate too).
 void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
-                     const TiltCost& cost, double w_p, double w_r, const Eigen::Vector3d& hint,
+                     const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
                      Eigen::Matrix3d& R) noexcept;
 
 /// The handle orientation R_R turned by the least rotation that takes its stylus's tip-to-
@@ -67,9 +84,10 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
 
 /// The angle x minimising -a cos(x - theta_p) + w_r acos(c + b cos(x - theta_o))^2 (a, b,
 /// w_r >= 0): a position term least at theta_p and a rotation angle least at theta_o, as
-/// for one revolute joint with weights isotropic per block. On the short arc between them.
-double arc_minimiser(double a, double theta_p, double b, double theta_o, double c,
-                     double w_r) noexcept;
+/// for one revolute joint with weights isotropic per block; theta_p and theta_o are the
+/// directions of the plane vectors p and o (any length). On the short arc between them.
+double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
+                     double c, double w_r) noexcept;
 
 /// Joint values of three revolute joints about x, y, z (in that order) giving the rotation
 /// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it).

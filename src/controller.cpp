@@ -233,7 +233,7 @@ void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
   const JointVector theta0 =
       !first && p.extrapolate ? warm_start(mech, opts, p.theta, p.theta_prev) : p.theta;
   JointVector theta;
-  p.result = detail::track(mech, target, theta0, W, opts, theta, p.pose, p.J);
+  p.result = detail::track(mech, target, theta0, W, opts, theta, p.pose, p.J, p.error);
   p.extrapolate = !first && p.result.converged && p.converged;
   p.converged = p.result.converged;
   p.theta_prev = first ? theta : p.theta;
@@ -302,7 +302,7 @@ void release(std::uint32_t joints, Placement& p) noexcept {
 void null_space_term(const ControllerModel& M, const Mechanism& mech, ControllerData& d,
                      CycleOutput& out) noexcept {
   Placement& p = d.nearest;
-  out.error = pose_error(p.pose, d.handle_pose);  // e = X_V - X_R (eq. 22)
+  out.error = -p.error;  // e = X_V - X_R (eq. 22)
   WeightedProjector& rate = M.w_a_shares_rate ? d.projector_a : d.rate;
   for (int pass = 0; pass < 2; ++pass) {
     error_rate(M, p, M.w_e_effective, d.v_R, pass == 0, rate, out.error_dot);
@@ -324,7 +324,7 @@ void null_space_term(const ControllerModel& M, const Mechanism& mech, Controller
 void range_space_term(const ControllerModel& M, const Mechanism& mech, ControllerData& d,
                       CycleOutput& out) noexcept {
   Placement& p = d.unpowered;
-  out.error_star = pose_error(p.pose, d.handle_pose);
+  out.error_star = -p.error;
   // P(W_A) at the nearest placement, every column: the null term's when none is locked.
   // Neither it nor the un-powered placement's J (every column) changes between the passes.
   if (d.nearest.active) d.projector_a.compute(d.nearest.J, M.w_a);

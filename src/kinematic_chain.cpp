@@ -11,20 +11,28 @@ namespace virtmech {
 namespace {
 
 // the frame (R, p) walked along the chain; products are written out for the common cases
-// (origins without rotation, axes along a coordinate axis) since they are the servo
-// cycle's inner loop
+// (origins without rotation or without any offset, axes along a coordinate axis) since they
+// are the servo cycle's inner loop, and kept small enough to be inlined into it
 struct Frame {
   Eigen::Matrix3d R;
   Eigen::Vector3d p;
 };
 
-inline void apply(Frame& f, const Pose& T) noexcept {
+// f <- f * T for a general pose (out of line: the uncommon case)
+[[gnu::noinline]] void apply(Frame& f, const Pose& T) noexcept {
   f.p.noalias() += f.R * T.translation();
   f.R = f.R * T.linear();
 }
 
+// f <- f * rotation about a unit axis not along a coordinate axis (out of line: uncommon)
+[[gnu::noinline]] void rotate_general(Frame& f, const Eigen::Vector3d& axis, double x) noexcept {
+  f.R = f.R * Eigen::AngleAxisd(x, axis).toRotationMatrix();
+}
+
 // f <- f * origin
-inline void apply_origin(Frame& f, const Pose& origin, bool translation_only) noexcept {
+inline void apply_origin(Frame& f, const Pose& origin, bool identity,
+                         bool translation_only) noexcept {
+  if (identity) return;
   if (translation_only) {
     f.p.noalias() += f.R * origin.translation();
   } else {
@@ -33,20 +41,24 @@ inline void apply_origin(Frame& f, const Pose& origin, bool translation_only) no
 }
 
 // f <- f * motion(x): rotation about, or translation along, the joint axis
-inline void apply_motion(Frame& f, const Joint& j, int axis_index, double axis_sign,
+[[gnu::always_inline]] inline void apply_motion(Frame& f, const Joint& j, int axis_index, double axis_sign,
                          double x) noexcept {
-  if (j.type == JointType::kPrismatic) {
-    f.p.noalias() += (x * f.R) * j.axis;
+  if (axis_index < 0) {
+    if (j.type == JointType::kPrismatic) {
+      f.p.noalias() += f.R * (x * j.axis);
+    } else {
+      rotate_general(f, j.axis, x);
+    }
     return;
   }
-  if (axis_index < 0) {
-    f.R = f.R * Eigen::AngleAxisd(x, j.axis).toRotationMatrix();
+  const double a = axis_sign * x;
+  if (j.type == JointType::kPrismatic) {
+    f.p += a * f.R.col(axis_index);
     return;
   }
   // rotation about a coordinate axis k mixes the two other columns of R
-  const double a = axis_sign * x;
   const double c = std::cos(a), s = std::sin(a);
-  const int u = (axis_index + 1) % 3, v = (axis_index + 2) % 3;
+  const int u = axis_index == 2 ? 0 : axis_index + 1, v = axis_index == 0 ? 2 : axis_index - 1;
   const Eigen::Vector3d ru = f.R.col(u), rv = f.R.col(v);
   f.R.col(u) = c * ru + s * rv;
   f.R.col(v) = c * rv - s * ru;
@@ -101,6 +113,7 @@ KinematicChain::KinematicChain(const Pose& base, const std::vector<Joint>& joint
       }
     }
     origin_translation_only_[k] = j.origin.linear().isIdentity(0.0);
+    origin_identity_[k] = origin_translation_only_[k] && j.origin.translation().isZero(0.0);
   }
 }
 
@@ -130,7 +143,7 @@ void KinematicChain::forward(const double* q, Pose& T) const noexcept {
   Frame f = start(base_);
   for (int i = 0; i < dof_; ++i) {
     const size_t k = static_cast<size_t>(i);
-    apply_origin(f, joints_[k].origin, origin_translation_only_[k]);
+    apply_origin(f, joints_[k].origin, origin_identity_[k], origin_translation_only_[k]);
     apply_motion(f, joints_[k], axis_index_[k], axis_sign_[k], q[i]);
   }
   finish(f, handle_, T);
@@ -145,7 +158,7 @@ void KinematicChain::forward_jacobian(const double* q, Pose& T, Jacobian& J) con
   for (int i = 0; i < dof_; ++i) {
     const size_t k = static_cast<size_t>(i);
     const Joint& j = joints_[k];
-    apply_origin(f, j.origin, origin_translation_only_[k]);
+    apply_origin(f, j.origin, origin_identity_[k], origin_translation_only_[k]);
     if (axis_index_[k] >= 0) {
       axes.col(i) = axis_sign_[k] * f.R.col(axis_index_[k]);
     } else {

@@ -162,14 +162,18 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
   // position: |pivot + L R_n(x) d - p_R|^2 = const - 2 L r cos(x - theta_p)
   const Eigen::Vector3d v = target.translation() - pivot_;
   const double vx = v.dot(zero_direction_), vy = v.dot(normal_.cross(zero_direction_));
-  const double r = std::hypot(vx, vy);
+  // (plain square roots: lengths and traces far from overflow; below 1e-154, where the
+  // squares underflow, a term that small is as good as absent)
+  const double r = std::sqrt(vx * vx + vy * vy);
   // rotation: with M = R_0 R_R^T, tr(R_n(x) M) = n'Mn + A cos x + B sin x, and the angle
-  // between R_n(x) R_0 and R_R has cosine (tr - 1) / 2
+  // between R_n(x) R_0 and R_R has cosine (tr - 1) / 2; B = tr([n]x M) written out
   const Eigen::Matrix3d M = rest_ * target.linear().transpose();
   const double nMn = normal_.dot(M * normal_);
-  const double A = M.trace() - nMn, B = (skew(normal_) * M).trace();
-  const double x = detail::arc_minimiser(2.0 * w_p * length_ * r, std::atan2(vy, vx),
-                                         0.5 * std::hypot(A, B), std::atan2(B, A),
+  const double A = M.trace() - nMn;
+  const double B = normal_.dot(
+      Eigen::Vector3d(M(1, 2) - M(2, 1), M(2, 0) - M(0, 2), M(0, 1) - M(1, 0)));
+  const double x = detail::arc_minimiser(2.0 * w_p * length_ * r, Eigen::Vector2d(vx, vy),
+                                         0.5 * std::sqrt(A * A + B * B), Eigen::Vector2d(A, B),
                                          0.5 * (nMn - 1.0), w_r);
   theta.resize(1);
   theta[0] = x + 2.0 * M_PI * std::round((start[0] - x) / (2.0 * M_PI));  // nearest start
@@ -253,8 +257,9 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
     cost.p1 = -2.0 * d * length_;
   }
   Eigen::Matrix3d R;
+  const auto start_direction = [&] { return wrist_direction(B, start.data() + wrist); };
   detail::tilt_about_axis(target.linear(), normal_, cost, w_p, w_r,
-                          wrist_direction(B, start.data() + wrist), R);
+                          detail::LazyDirection(start_direction), R);
   // the tip below the handle for that orientation, brought onto the plane (or left in
   // front of it when one-sided)
   Eigen::Vector3d tip = p_R + length_ * R.col(2);

@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "small_cholesky.hpp"
 #include "track_detail.hpp"
@@ -71,13 +72,14 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
                   JointVector& theta) noexcept {
   Pose pose;
   Jacobian J;
-  return detail::track(mechanism, target, theta0, weights, options, theta, pose, J);
+  Vector6 error;
+  return detail::track(mechanism, target, theta0, weights, options, theta, pose, J, error);
 }
 
 TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                           const JointVector& theta0, const Vector6& weights,
                           const TrackOptions& options, JointVector& theta, Pose& pose,
-                          Jacobian& J) noexcept {
+                          Jacobian& J, Vector6& error) noexcept {
   const int n = mechanism.dof();
   TrackResult result;
   if (options.closed_form && mechanism.place(target, weights, theta0, theta)) {
@@ -88,6 +90,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     result.active = active_set(mechanism, theta, ev.g, result.active_upper);
     pose = ev.T;
     J = ev.J;
+    error = ev.e;
     return result;
   }
   theta = theta0;
@@ -99,8 +102,12 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                       : options.max_step_prismatic * mechanism.length_scale();
   }
 
-  Eval ev, trial_ev, extrapolated_ev;
-  evaluate(mechanism, target, theta, weights, ev);
+  // three evaluations, swapped rather than copied as a trial is accepted
+  Eval evals[3];
+  Eval* ev = &evals[0];
+  Eval* trial_ev = &evals[1];
+  Eval* extrapolated_ev = &evals[2];
+  evaluate(mechanism, target, theta, weights, *ev);
   JointMatrix H(n, n), L(n, n);
   JointVector delta(n), trial(n), extrapolated(n);
 
@@ -109,9 +116,9 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     // gradient entries and columns leave the step, so the others' step is the constrained
     // problem's, not an unconstrained one clipped)
     std::uint32_t upper;
-    const std::uint32_t locked = active_set(mechanism, theta, ev.g, upper);
+    const std::uint32_t locked = active_set(mechanism, theta, ev->g, upper);
     JointVector& g_free = trial;  // scratch until the step is taken
-    g_free = ev.g;
+    g_free = ev->g;
     for (int i = 0; i < n; ++i) {
       if (locked & (1u << i)) g_free[i] = 0.0;
     }
@@ -121,8 +128,8 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     }
     // eq. 18: delta = (J^T W J)^-1 J^T W (X_R - X_V), damped so rank-deficient J^T W J
     // gives the minimum-norm step
-    const Jacobian WJ = weights.asDiagonal() * ev.J;
-    H.noalias() = ev.J.transpose() * WJ;
+    const Jacobian WJ = weights.asDiagonal() * ev->J;
+    H.noalias() = ev->J.transpose() * WJ;
     H.diagonal().array() += options.damping * (H.trace() / n) + 1e-300;
     for (int i = 0; i < n; ++i) {
       if (!(locked & (1u << i))) continue;
@@ -154,20 +161,20 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
       // secant extrapolation removes the slow component
       trial = theta + delta;
       clamp_to_limits(mechanism, trial);
-      evaluate(mechanism, target, trial, weights, trial_ev);
-      const double slope1 = trial_ev.g.dot(delta);
+      evaluate(mechanism, target, trial, weights, *trial_ev);
+      const double slope1 = trial_ev->g.dot(delta);
       if (slope0 > 0.0 && slope1 < 0.0) {
         trial = theta + (slope0 / (slope0 - slope1)) * delta;
         clamp_to_limits(mechanism, trial);
-        evaluate(mechanism, target, trial, weights, trial_ev);
+        evaluate(mechanism, target, trial, weights, *trial_ev);
       } else if (slope0 > 0.0 && slope1 >= kSecantMinRatio * slope0 &&
                  slope1 <= kSecantMaxRatio * slope0) {
         extrapolated = theta + (slope0 / (slope0 - slope1)) * delta;
         clamp_to_limits(mechanism, extrapolated);
-        evaluate(mechanism, target, extrapolated, weights, extrapolated_ev);
-        if (std::abs(extrapolated_ev.g.dot(delta)) < slope1) {  // kept only if it helped
+        evaluate(mechanism, target, extrapolated, weights, *extrapolated_ev);
+        if (std::abs(extrapolated_ev->g.dot(delta)) < slope1) {  // kept only if it helped
           trial = extrapolated;
-          trial_ev = extrapolated_ev;
+          std::swap(trial_ev, extrapolated_ev);
         }
       }
     } else {
@@ -177,7 +184,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
       for (int k = 0; k < 10; ++k) {
         trial = theta + alpha * delta;
         clamp_to_limits(mechanism, trial);
-        if (cost_at(mechanism, target, trial, weights) <= ev.cost) {
+        if (cost_at(mechanism, target, trial, weights) <= ev->cost) {
           accepted = true;
           break;
         }
@@ -187,27 +194,28 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
         result.converged = true;
         break;
       }
-      evaluate(mechanism, target, trial, weights, trial_ev);
+      evaluate(mechanism, target, trial, weights, *trial_ev);
     }
     const double moved = (trial - theta).cwiseAbs().maxCoeff();
     theta = trial;  // eq. 20
-    ev = trial_ev;
+    std::swap(ev, trial_ev);
     if (moved <= options.step_tolerance) {
       result.converged = true;
       break;
     }
   }
-  result.active = active_set(mechanism, theta, ev.g, result.active_upper);
+  result.active = active_set(mechanism, theta, ev->g, result.active_upper);
   if (!result.converged) {
-    trial = ev.g;  // the projected gradient
+    trial = ev->g;  // the projected gradient
     for (int i = 0; i < n; ++i) {
       if (result.active & (1u << i)) trial[i] = 0.0;
     }
     result.converged = trial.cwiseAbs().maxCoeff() <= options.gradient_tolerance;
   }
-  result.residual = std::sqrt(std::max(ev.cost, 0.0));
-  pose = ev.T;  // ev is always the evaluation at theta
-  J = ev.J;
+  result.residual = std::sqrt(std::max(ev->cost, 0.0));
+  pose = ev->T;  // ev is always the evaluation at theta
+  J = ev->J;
+  error = ev->e;
   return result;
 }
 

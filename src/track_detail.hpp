@@ -1,14 +1,16 @@
-// The placement with what its last evaluation already holds: the mechanism's pose and
-// Jacobian at the returned theta, so the controller need not compute them again. Internal.
+// The placement with what its last evaluation already holds: the mechanism's pose, its
+// Jacobian and the pose error at the returned theta, so the controller need not compute
+// them again. Internal.
 #pragma once
 
 #include "virtmech/track.hpp"
 
 namespace virtmech::detail {
 
-/// track() that also returns the handle pose and the Jacobian of the mechanism at theta.
+/// track() that also returns the handle pose and the Jacobian of the mechanism at theta,
+/// and the error pose_error(target, pose).
 TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVector& theta0,
                   const Vector6& weights, const TrackOptions& options, JointVector& theta,
-                  Pose& pose, Jacobian& J) noexcept;
+                  Pose& pose, Jacobian& J, Vector6& error) noexcept;
 
 }  // namespace virtmech::detail

@@ -135,6 +135,9 @@ struct Placement {
   bool extrapolate = false;  //!< ... and so did the one before it
   Pose pose = Pose::Identity();  //!< mechanism handle pose at theta
   Jacobian J;              //!< J_V at theta, every column
+  /// pose_error(target, pose): X_R - X_V at theta, as the placement evaluated it (its
+  /// residual's), so that the cycle need not compute it again
+  Vector6 error = Vector6::Zero();
   Jacobian J_free;         //!< J_V without the columns of the active joints
   std::uint32_t active = 0;  //!< joints held at a limit that acts
   TrackResult result;

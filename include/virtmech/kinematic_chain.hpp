@@ -61,10 +61,11 @@ class KinematicChain {
   int dof_ = 0;
   // derived at construction for the evaluation calls: a joint axis that is +-x, +-y or +-z
   // (axis_index_ 0..2, axis_sign_ +-1; -1: any other direction), and whether the joint's
-  // origin has no rotation
+  // origin has no rotation, and no translation either
   std::array<int, kMaxDof> axis_index_{};
   std::array<double, kMaxDof> axis_sign_{};
   std::array<bool, kMaxDof> origin_translation_only_{};
+  std::array<bool, kMaxDof> origin_identity_{};
 };
 
 }  // namespace virtmech
