@@ -1,4 +1,4 @@
-// The four benchmark cases of the cycle (issue 4) and the joint trajectory that drives them.
+// The benchmark cases of the cycle and the joint trajectory that drives them.
 // python/virtmech/bench.py builds the same cases and the same trajectory for its NumPy
 // baseline and its Python-call timing: keep the two in step.
 #pragma once
@@ -53,7 +53,8 @@ inline JointVector values(std::initializer_list<double> v) {
   return out;
 }
 
-/// The cases of issue 4 (and one stress case), in the order the reports list them.
+/// The cases (four device-mechanism pairs and one stress case), in the order the reports
+/// list them.
 inline std::vector<BenchCase> make_cases() {
   std::vector<BenchCase> cases;
   auto omni = std::make_shared<PhantomOmni>();

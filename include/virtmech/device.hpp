@@ -103,7 +103,8 @@ class SerialDevice : public Device {
   std::array<double, kMaxDof * kMaxDof> coupling_value_{};
 };
 
-/// Parameters of the PHANTOM Omni / Geomagic Touch model (defaults: ../shared/REFERENCE.md).
+/// Parameters of the PHANTOM Omni / Geomagic Touch model (defaults and their sources:
+/// docs/devices.md).
 struct PhantomOmniParams {
   double l1 = 0.13335;  //!< upper arm [m] (commonly cited 133.35 mm; check)
   double l2 = 0.13335;  //!< forearm [m]

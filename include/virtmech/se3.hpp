@@ -1,4 +1,5 @@
-// Rigid-body helpers: the pose error of DESIGN.md and SO(3) exponential / logarithm.
+// Rigid-body helpers: the pose error (docs/theory.md, section 1) and the SO(3) exponential
+// and logarithm.
 #pragma once
 
 #include "virtmech/types.hpp"

@@ -201,7 +201,7 @@ def cmd_demo(args) -> int:
 
 
 def cmd_bench(argv: list[str]) -> int:
-    from . import bench  # written for issue 4; imported only when asked for
+    from . import bench  # imported only when asked for
 
     return int(bench.main(argv))
 

@@ -83,7 +83,8 @@ def test_wrong_type_names_key_value_and_expectation():
     assert "sensors.counts_per_rev: expected an integer, got float 1.5" in msg
     msg = _error(GOOD.replace('type = "PhantomOmni"', 'type = "Falcon"'))
     assert (
-        "device.type: value 'Falcon' is not allowed; expected one of 'PhantomOmni', 'Planar3R', 'Device'"
+        "device.type: value 'Falcon' is not allowed; expected one of "
+        "'PhantomOmni', 'Planar3R', 'Device'"
         in msg
     )
 

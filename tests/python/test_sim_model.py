@@ -122,8 +122,8 @@ def test_passive_joints_have_friction_and_damping_and_no_motor():
 
 
 def test_omni_apparent_tip_mass_is_near_the_reference_45_g():
-    """REFERENCE.md: apparent tip inertia about 45 g (check); the model gives 25..60 g in
-    every direction over a few postures (the hand's own mass excluded)."""
+    """The Omni's apparent tip inertia is commonly given as about 45 g (check); the model
+    gives 25..60 g in every direction over a few postures (the hand's own mass excluded)."""
     omni = vm.PhantomOmni()
     built = build_mjcf(omni, hand=HandBody(1e-6, 1e-9))
     model = compile_model(built)

@@ -32,8 +32,9 @@ import virtmech as vm
 
 @dataclass
 class HandImpedance:
-    """Hand and arm holding a stylus (REFERENCE.md ranges: m 0.05..0.6 kg, b 2..10 N·s/m,
-    k 50..500 N/m). Rotational values are estimates (check)."""
+    """Hand and arm holding a stylus (ranges from relaxed to tense: m 0.05..0.6 kg, b 2..10
+    N·s/m, k 50..500 N/m; from fits of the arm at a HapticMaster's handle and of fingertip
+    impedance, Hajian & Howe 1997). Rotational values are estimates (check)."""
 
     mass_kg: float = 0.2
     damping: float = 5.0  #: translational [N·s/m]

@@ -44,7 +44,7 @@ class DeviceModel:
     base_mass: float = 0.08
     #: reflected motor-rotor inertia on every actuated joint [kg·m²] (check); with the
     #: link, gimbal and stylus masses it gives the Omni 30..50 g apparent mass at the
-    #: handle (REFERENCE.md: about 45 g, check)
+    #: handle (commonly given as about 45 g, check)
     armature: float = 1.5e-4
     #: Coulomb friction on the actuated joints [N·m]: the Omni's backdrive friction of
     #: about 0.26 N at the tip (check) times half a link length (shared by two joints)
