@@ -274,12 +274,42 @@ def simulation_figures(scenarios: list[str] | None = None,
         except Exception as exc:
             notes.append(f"{name}: {type(exc).__name__}: {exc}")
             continue
+        mujoco_s = mujoco_alone_s(result, repeats)
         out.append({"scenario": name, "realtime_factor": sim_s / wall_s,
                     "sim_time_s": sim_s, "wall_time_s": wall_s,
                     "setup_and_run_wall_time_s": total_s,
+                    "mujoco_alone_s": mujoco_s,
+                    "overhead_vs_mujoco": wall_s / mujoco_s,
                     "engine": result.info["physics"].get("engine", "python"),
                     "runs": repeats})
     return out, "; ".join(notes)
+
+
+def mujoco_alone_s(result: Any, repeats: int = 3) -> float:
+    """Wall time of MuJoCo alone for the run's physics steps: the run's own model (its
+    MJCF) from its initial state, stepped as many times as the run stepped it, with no
+    controls and no gravity so that it rests (no joint limit is hit on the way: the least
+    MuJoCo can spend on those steps; median of `repeats`). The run's loop time over this
+    is an upper bound on the cost of everything virtmech adds (controller, sensors, hand,
+    logging)."""
+    import mujoco
+
+    from virtmech.sim.loop import make_device
+    from virtmech.sim.model import coupling_of
+
+    model = mujoco.MjModel.from_xml_string(result.info["mjcf"])
+    model.opt.gravity[:] = 0.0
+    device = make_device(result.scenario.data["device"])
+    s0 = coupling_of(device).to_chain(np.asarray(result.info["initial_q"]))
+    steps = result.n_cycles * int(result.info["physics"]["substeps"])  # nsub per cycle
+    times = []
+    for _ in range(repeats):
+        data = mujoco.MjData(model)
+        data.qpos[:] = s0
+        t0 = time.perf_counter()
+        mujoco.mj_step(model, data, nstep=steps)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
 
 
 def machine() -> dict[str, Any]:
@@ -398,9 +428,12 @@ def format_table(r: dict[str, Any]) -> str:
         lines.append(r["numpy_note"])
     lines.append("")
     if r["simulation"]:
-        lines.append(f"{'simulation scenario':<40}{'real-time factor':>18}")
+        lines.append(f"{'simulation scenario':<40}{'real-time factor':>18}{'vs MuJoCo alone':>18}")
         for s in r["simulation"]:
-            lines.append(f"{s['scenario']:<40}{s['realtime_factor']:>17.1f}x")
+            lines.append(
+                f"{s['scenario']:<40}{s['realtime_factor']:>17.1f}x"
+                f"{s['overhead_vs_mujoco']:>17.2f}x"
+            )
     if r.get("simulation_note"):
         lines.append(f"simulation: {r['simulation_note']}")
     return "\n".join(lines)
