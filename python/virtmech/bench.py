@@ -244,12 +244,13 @@ def numpy_reference(case: Case, reference: Any, q_warm: np.ndarray, dq_warm: np.
     return {"median_us": float(np.median(ns)) * 1e-3, "torque": tau}
 
 
-def simulation_figures(scenarios: list[str] | None = None,
-                       repeats: int = 3) -> tuple[list[dict[str, Any]], str]:
+def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
+                       mujoco_alone: Any = None) -> tuple[list[dict[str, Any]], str]:
     """Real-time factor of each shipped scenario, if the simulation is installed: simulated
     seconds per wall second of the closed loop (`SimResult.wall_time_s`, median of `repeats`
-    runs); `setup_and_run_wall_time_s` adds building the MJCF and solving the start pose.
-    Returns the figures and a note."""
+    runs); `setup_and_run_wall_time_s` adds building the MJCF and solving the start pose;
+    `overhead_vs_mujoco`: that wall time over `mujoco_alone(result, repeats)` (default
+    `mujoco_alone_s`). Returns the figures and a note."""
     try:
         from virtmech import scenarios as vs
         from virtmech import sim as vsim
@@ -274,7 +275,7 @@ def simulation_figures(scenarios: list[str] | None = None,
         except Exception as exc:
             notes.append(f"{name}: {type(exc).__name__}: {exc}")
             continue
-        mujoco_s = mujoco_alone_s(result, repeats)
+        mujoco_s = (mujoco_alone or mujoco_alone_s)(result, repeats)
         out.append({"scenario": name, "realtime_factor": sim_s / wall_s,
                     "sim_time_s": sim_s, "wall_time_s": wall_s,
                     "setup_and_run_wall_time_s": total_s,

@@ -123,10 +123,11 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
 
     monkeypatch.setattr(virtmech, "scenarios", scen, raising=False)
     monkeypatch.setattr(virtmech, "sim", sim, raising=False)
-    figures, note = bench.simulation_figures()
+    figures, note = bench.simulation_figures(mujoco_alone=lambda result, repeats: 0.04)
     assert note == ""
     figures[0].pop("setup_and_run_wall_time_s")  # wall time around the stand-in: not asserted
     # the median of the three runs
     assert figures == [{"scenario": "omni_probe_table", "realtime_factor": pytest.approx(40.0),
                         "sim_time_s": 2.0, "wall_time_s": 0.05, "engine": "compiled",
+                        "mujoco_alone_s": 0.04, "overhead_vs_mujoco": pytest.approx(1.25),
                         "runs": 3}]
