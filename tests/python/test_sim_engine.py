@@ -277,3 +277,13 @@ def test_the_loop_writes_only_into_the_callers_arrays():
     # the columns computed after the run are left alone; every other column is written
     post = [i for i, name in enumerate(c) if (log[:, i] == -7.0).all()]
     assert [c[i] for i in post] == c[c.index("dist") :]
+
+
+def test_a_loop_that_cannot_load_says_to_reinstall_virtmech(monkeypatch):
+    # as when the installed mujoco is not the one virtmech._sim was built against (its
+    # libmujoco.so.<version> is then missing)
+    import sys
+
+    monkeypatch.setitem(sys.modules, "virtmech._sim", None)
+    with pytest.raises(ImportError, match="reinstall virtmech"):
+        inner._sim_module()

@@ -78,8 +78,10 @@ def layout(fields: dict[str, str], columns: list[str]) -> dict[str, int]:
 
 def _sim_module() -> Any:
     """virtmech._sim, or an ImportError saying what to do."""
+    import importlib
+
     try:
-        from .. import _sim
+        return importlib.import_module("virtmech._sim")
     except ImportError as e:
         import mujoco
 
@@ -87,10 +89,10 @@ def _sim_module() -> Any:
             f"virtmech's simulation loop (virtmech._sim) cannot be loaded with the installed "
             f"mujoco {mujoco.__version__} ({e}). virtmech._sim links the MuJoCo library of the "
             f"mujoco version virtmech was built with; reinstall virtmech against this mujoco "
-            f"(pip install --force-reinstall --no-deps --no-binary virtmech virtmech, or "
-            f"pip install . in a checkout), or install the mujoco it was built with"
+            f"(from its source, with scikit-build-core, nanobind and cmeel-eigen installed: "
+            f"pip install --no-build-isolation --force-reinstall --no-deps .), or install the "
+            f"mujoco it was built with"
         ) from e
-    return _sim
 
 
 class ServoLoop:
