@@ -337,8 +337,6 @@ nb::dict model_dict(const ControllerModel& m) {
 
 }  // namespace
 
-void bind_sim_kernel(nb::module_& m);  // sim_kernel.cpp
-
 NB_MODULE(_core, m) {
   m.doc() = "virtmech core (C++): devices, virtual mechanisms and the controller cycle.";
   m.attr("__version__") = VIRTMECH_VERSION_STRING;
@@ -965,5 +963,4 @@ NB_MODULE(_core, m) {
                    "The resolved settings (every default filled in).")
       .def_prop_ro("last", [](const Controller& c) { return c.last(); }, "The last cycle's output.");
 
-  bind_sim_kernel(m);
 }

@@ -3,7 +3,6 @@
 virtmech demo [--out DIR] [--only NAME...]   every shipped scenario, summary.json, index.html
 virtmech run SCENARIO [--out DIR]     one scenario (a TOML path or a shipped name)
              [--seed N] [--duration S]
-             [--engine python]        ... with the simulation loop in Python (the reference)
 virtmech scenarios                    the shipped scenarios
 virtmech schema                       the JSON Schema of the scenario format
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
@@ -54,7 +53,7 @@ def _out_dir(path: str | Path, flag: str = "--out") -> Path:
     return out
 
 
-def _run_one(scenario, out_dir: Path, seed, progress: bool, engine: str = "compiled") -> dict:
+def _run_one(scenario, out_dir: Path, seed, progress: bool) -> dict:
     from . import sim
     from .sim.output import (
         LARGE_LOG_BYTES,
@@ -78,9 +77,7 @@ def _run_one(scenario, out_dir: Path, seed, progress: bool, engine: str = "compi
             file=sys.stderr,
         )
     with CsvLog(out / "log.csv") as csv:
-        result = sim.run(
-            scenario, seed=seed, progress=progress, engine=engine, sink=csv, spill_dir=out
-        )
+        result = sim.run(scenario, seed=seed, progress=progress, sink=csv, spill_dir=out)
     write_run(result, out, log=False)
     write_figures(result, out)
     return metrics(result)
@@ -124,7 +121,7 @@ def cmd_run(args) -> int:
             raise UserError(*[f"--duration {args.duration:g}: {m}" for m in e.messages]) from None
     out = Path(args.out) if args.out else Path("out") / s.name
     t0 = time.perf_counter()
-    m = _run_one(s, out, args.seed, not args.quiet, args.engine)
+    m = _run_one(s, out, args.seed, not args.quiet)
     print(
         f"{s.name}: wrote {out}/log.csv, run.json, plane.png, time.png "
         f"({time.perf_counter() - t0:.2f} s wall)"
@@ -245,12 +242,6 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=_seed, help="random seed, 0 to 2**63-1 (default: the scenario's)")
     r.add_argument("--duration", type=float, help="override duration_s [s]")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
-    r.add_argument(
-        "--engine",
-        choices=("compiled", "python"),
-        default="compiled",
-        help="the simulation loop: compiled (default) or the Python reference (slower)",
-    )
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)

@@ -1,12 +1,11 @@
-"""The simulation's two inner loops (virtmech/sim/inner.py): the compiled one gives the
-Python reference's log, the hand's plan is the per-cycle intent, and the compiled loop
-leaves MuJoCo's global state as it found it."""
+"""The simulation's servo-rate loop (C++, virtmech._sim through virtmech/sim/inner.py): it
+gives the Python reference's log (tests/reference/sim_loop.py), the hand's plan is the
+per-cycle intent, the loop takes its columns from the one table of each, and it leaves
+MuJoCo's global timer callback as it found it."""
 
 from __future__ import annotations
 
 import ctypes
-import glob
-import os
 
 import numpy as np
 import pytest
@@ -16,8 +15,9 @@ import virtmech as vm
 mujoco = pytest.importorskip("mujoco")
 
 from virtmech.scenarios import load  # noqa: E402
+from virtmech.sim import inner  # noqa: E402
 from virtmech.sim.human import PLAN_COLUMNS, HandImpedance, Intent  # noqa: E402
-from virtmech.sim.loop import run  # noqa: E402
+from virtmech.sim.loop import log_columns, run  # noqa: E402
 
 # every sensor effect on, so the compiled sensor model is compared as well
 SENSORS = {
@@ -32,10 +32,13 @@ SENSORS = {
     "name, duration",
     [("omni-fig11", 0.8), ("omni-fig10", 0.4), ("planar3r-fig10", 0.5)],
 )
-def test_compiled_loop_gives_the_python_reference_log(name, duration):
+def test_compiled_loop_gives_the_python_reference_log(name, duration, monkeypatch):
+    from reference.sim_loop import PyServoLoop
+
     s = load(name).with_overrides(duration_s=duration, sensors=SENSORS)
-    a = run(s, engine="compiled")
-    b = run(s, engine="python")
+    a = run(s)
+    monkeypatch.setattr(inner, "ServoLoop", PyServoLoop)
+    b = run(s)
     assert a.columns == b.columns and a.log.shape == b.log.shape
     # the same physics, sensors, controller and hand, cycle by cycle: differences are the
     # rounding of two implementations of the same formulas (MuJoCo's friction makes the
@@ -52,11 +55,11 @@ def test_compiled_loop_gives_the_python_reference_log(name, duration):
     assert np.abs(a.col("qm0") - a.col("q0")).max() > 1e-5
 
 
-def test_the_run_records_its_engine_and_refuses_an_unknown_one():
+def test_the_run_records_its_loop_and_there_is_one():
     s = load("omni-fig9").with_overrides(duration_s=0.02)
     assert run(s).info["physics"]["engine"] == "compiled"
-    with pytest.raises(ValueError, match="engine"):
-        run(s, engine="cython")
+    with pytest.raises(TypeError, match="engine"):
+        run(s, engine="python")
 
 
 SEGMENTS = [
@@ -127,48 +130,93 @@ def test_a_plan_across_a_segment_start_is_refused():
 
 
 def _mujoco_timer() -> ctypes.c_void_p:
-    here = os.path.dirname(mujoco.__file__)
-    lib = ctypes.CDLL(sorted(glob.glob(os.path.join(here, "libmujoco.so*")))[0])
-    return ctypes.c_void_p.in_dll(lib, "mjcb_time")
+    # the library virtmech._sim loaded (the mujoco package's): the same mjcb_time
+    from virtmech import _sim
+
+    return ctypes.c_void_p.in_dll(ctypes.CDLL(_sim.__file__), "mjcb_time")
 
 
-@pytest.mark.skipif(
-    not glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco.so*")),
-    reason="MuJoCo's library is not a .so on this platform",
-)
-def test_the_compiled_loop_restores_mujocos_timer_callback():
+def test_the_loop_restores_mujocos_timer_callback():
+    # (the restore on a throw is tested in C++: tests/cpp/test_sim_loop.cpp)
     before = _mujoco_timer().value
+    assert before is not None  # the mujoco package installs one: the test is not vacuous
     run(load("omni-fig9").with_overrides(duration_s=0.05))
     assert _mujoco_timer().value == before
 
 
-def test_the_kernel_names_a_wrong_array():
-    from virtmech.sim.inner import CompiledLoop
+def _loop_settings(Cinv, c0, actuated) -> dict:
+    from virtmech.sim.sensors import Sensors, SensorSettings
 
+    n = len(c0)
+    return dict(
+        coupling_inv=Cinv,
+        coupling_offset=c0,
+        actuated=actuated,
+        substeps=4,
+        period_s=1e-3,
+        comp_bodies=[],
+        comp_masses=[],
+        gravity=np.zeros(3),
+        sensors=Sensors(SensorSettings(counts_per_rev=0), n, 1e-3, None),
+    )
+
+
+#: one hinge about z with a motor that transmits nothing (gear 0)
+HINGE_XML = (
+    '<mujoco><worldbody><body><joint name="h" type="hinge"/><geom size="0.1"/></body>'
+    '</worldbody><actuator><motor joint="h" gear="0"/></actuator></mujoco>'
+)
+
+
+def _hinge_loop(model, data):
+    """The loop on HINGE_XML: a one-joint device, a PlanarArm."""
+    T = np.eye(4)
+    T[0, 3] = 0.1
+    dev = vm.Device([vm.Joint("revolute", [0, 0, 1])], [True], handle=T)
+    ctrl = vm.Controller(dev, vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.1))
+    return inner.ServoLoop(
+        ctrl, model, data, log_columns=log_columns(1, 1),
+        **_loop_settings(np.eye(1), np.zeros(1), [0]),
+    )
+
+
+def _still_plan(rows: int) -> np.ndarray:
+    plan = np.zeros((rows, len(PLAN_COLUMNS)))
+    plan[:, 3:12] = np.eye(3).ravel()
+    return plan
+
+
+def _log(rows: int, n: int = 1, m: int = 1) -> np.ndarray:
+    return np.zeros((rows, len(log_columns(n, m))))
+
+
+def test_the_loop_refuses_a_model_that_is_not_the_device():
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><worldbody><body><joint type="hinge"/><geom size="0.1"/></body>'
         "</worldbody></mujoco>"
     )
     data = mujoco.MjData(model)
     ctrl = vm.Controller(vm.PhantomOmni(), vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.08))
-    with pytest.raises(ValueError, match="qpos: expected shape \\(6,\\)"):
-        CompiledLoop(ctrl, model, data, **_omni_loop_settings(np.eye(6), np.zeros(6)))
+    with pytest.raises(ValueError, match="model: expected one MuJoCo .* joint per device joint"):
+        inner.ServoLoop(
+            ctrl, model, data, log_columns=log_columns(6, 1),
+            **_loop_settings(np.eye(6), np.zeros(6), [0, 1, 2]),
+        )
 
 
-def _omni_loop_settings(Cinv, c0) -> dict:
-    from virtmech.sim.sensors import Sensors, SensorSettings
-
-    return dict(
-        coupling_inv=Cinv,
-        coupling_offset=c0,
-        actuated=[0, 1, 2],
-        substeps=4,
-        period_s=1e-3,
-        comp_bodies=[],
-        comp_masses=[],
-        gravity=np.zeros(3),
-        sensors=Sensors(SensorSettings(counts_per_rev=0), 6, 1e-3, None),
-    )
+def test_the_layouts_come_from_the_tables(monkeypatch):
+    cols = log_columns(6, 1)
+    plan = inner.layout(inner.PLAN_FIELDS, PLAN_COLUMNS)
+    log = inner.layout(inner.LOG_FIELDS, cols)
+    assert plan["columns"] == len(PLAN_COLUMNS) and log["columns"] == len(cols)
+    assert -1 not in plan.values() and -1 not in log.values()
+    assert PLAN_COLUMNS[plan["anchor_R"] : plan["anchor_R"] + 9][-1] == "R22"
+    assert cols[log["tau_motor"] : log["tau_motor"] + 6][-1] == "tau_motor5"
+    # a layout names the loop's fields: a misspelt one is refused by the loop
+    model = mujoco.MjModel.from_xml_string(HINGE_XML)
+    monkeypatch.setitem(inner.LOG_FIELDS, "torque", "tau0")
+    with pytest.raises(ValueError, match="log_layout: unknown field torque"):
+        _hinge_loop(model, mujoco.MjData(model))
 
 
 @pytest.mark.parametrize("device", ["omni", "planar3r"])
@@ -197,8 +245,7 @@ def test_step1_then_step2_is_mj_step_on_the_device_models(device):
     np.testing.assert_array_equal(d1.qvel, d2.qvel)
 
 
-def test_the_kernel_writes_only_into_the_callers_arrays():
-    from virtmech.sim.inner import CompiledLoop
+def test_the_loop_writes_only_into_the_callers_arrays():
     from virtmech.sim.model import build_mjcf, compile_model
 
     omni = vm.PhantomOmni()
@@ -207,22 +254,36 @@ def test_the_kernel_writes_only_into_the_callers_arrays():
     data = mujoco.MjData(model)
     data.qpos[:] = built.coupling.to_chain(omni.home)
     ctrl = vm.Controller(omni, vm.PlanarArm([0, 0, 0], [0, 0, 1], 0.08))
-    loop = CompiledLoop(
-        ctrl, model, data, **_omni_loop_settings(built.coupling.Cinv, built.coupling.c0)
+    loop = inner.ServoLoop(
+        ctrl, model, data, log_columns=log_columns(6, 1),
+        **_loop_settings(built.coupling.Cinv, built.coupling.c0, [0, 1, 2]),
     )
-    plan = np.zeros((3, len(PLAN_COLUMNS)))
-    plan[:, 3:12] = np.eye(3).ravel()
+    plan = _still_plan(3)
     noise, dropout = np.zeros((3, 6)), np.zeros(3)
-    cols = loop._kernel.columns
+    cols = len(log_columns(6, 1))
     with pytest.raises(TypeError):  # a converted copy would swallow the rows
         loop.run(0, plan, noise, dropout, np.zeros((3, cols), dtype=np.float32))
     with pytest.raises(TypeError):
         loop.run(0, plan, noise, dropout, np.zeros((3, 2 * cols))[:, ::2])
-    with pytest.raises(ValueError, match="plan: expected shape \\(3, 27\\)"):
+    with pytest.raises(ValueError, match=f"plan: expected shape \\(3, {len(PLAN_COLUMNS)}\\)"):
         loop.run(0, plan[:, :20].copy(), noise, dropout, np.zeros((3, cols)))
     with pytest.raises(ValueError, match="log: expected shape \\(3, "):
         loop.run(0, plan, noise, dropout, np.zeros((2, cols)))
-    log = np.zeros((3, cols))
+    log = np.full((3, cols), -7.0)
     loop.run(0, plan, noise, dropout, log)
-    np.testing.assert_allclose(log[:, 0], [0.0, 1e-3, 2e-3])  # t of each cycle
-    np.testing.assert_allclose(log[0, 1:7], omni.home, atol=1e-12)  # q at the first cycle
+    c = log_columns(6, 1)
+    np.testing.assert_allclose(log[:, c.index("t")], [0.0, 1e-3, 2e-3])  # t of each cycle
+    np.testing.assert_allclose(log[0, c.index("q0") : c.index("q0") + 6], omni.home, atol=1e-12)
+    # the columns computed after the run are left alone; every other column is written
+    post = [i for i, name in enumerate(c) if (log[:, i] == -7.0).all()]
+    assert [c[i] for i in post] == c[c.index("dist") :]
+
+
+def test_a_loop_that_cannot_load_says_to_reinstall_virtmech(monkeypatch):
+    # as when the installed mujoco is not the one virtmech._sim was built against (its
+    # libmujoco.so.<version> is then missing)
+    import sys
+
+    monkeypatch.setitem(sys.modules, "virtmech._sim", None)
+    with pytest.raises(ImportError, match="reinstall virtmech"):
+        inner._sim_module()

@@ -6,6 +6,9 @@ on their own to their own tolerance (placement.py: Newton on the placement's sta
 condition, no closed forms, no iteration counts from the core), eigen-decomposition
 pseudo-inverses for the filters, the projection and the clamps. Tests compare the core with
 it where the core converges; `virtmech bench` times it as the NumPy column.
+
+`reference.sim_loop` (imported on its own: it needs MuJoCo) is the simulation's servo-rate
+loop in Python, the reference of the C++ loop in one test.
 """
 
 from .controller import NpController

@@ -3,9 +3,9 @@ virtmech`` does not import MuJoCo).
 
 Stable API (docs/simulation.md):
 
-- ``run(scenario, seed=None, progress=False, engine="compiled") -> SimResult``: runs a
-  scenario (a ``virtmech.scenarios.Scenario``, a shipped name or a TOML path) headless;
-  ``engine="python"`` runs the Python reference of the compiled loop; ``sink=`` receives
+- ``run(scenario, seed=None, progress=False) -> SimResult``: runs a scenario (a
+  ``virtmech.scenarios.Scenario``, a shipped name or a TOML path) headless (the servo-rate
+  loop is C++, ``virtmech._sim``, imported here lazily); ``sink=`` receives
   the log block by block as it is produced (``virtmech.sim.output.CsvLog`` writes log.csv
   so), ``keep_log=False`` keeps none of it in memory.
 - ``SimResult``: ``.log`` (one row per control cycle), ``.columns``, ``.col(name)``,
@@ -25,13 +25,12 @@ def run(
     scenario: Any,
     seed: int | None = None,
     progress: bool = False,
-    engine: str = "compiled",
     **streaming: Any,
 ):
     """virtmech.sim.loop.run: `streaming` takes sink, keep_log, chunk_s and spill_dir."""
     from .loop import run as _run
 
-    return _run(scenario, seed=seed, progress=progress, engine=engine, **streaming)
+    return _run(scenario, seed=seed, progress=progress, **streaming)
 
 
 def __getattr__(name: str) -> Any:

@@ -95,6 +95,14 @@ PLAN_COLUMNS = (
     + ["vx", "vy", "vz", "wx", "wy", "wz", "k_t", "b_t", "k_r", "b_r"]
     + ["fx", "fy", "fz", "force_in_handle", "segment"]
 )
+#: column of each name in PLAN_COLUMNS
+PLAN_INDEX = {name: i for i, name in enumerate(PLAN_COLUMNS)}
+
+
+def plan_slice(first: str, width: int = 1) -> slice:
+    """The PLAN_COLUMNS from `first`, `width` of them."""
+    i = PLAN_INDEX[first]
+    return slice(i, i + width)
 
 
 @dataclass
@@ -243,18 +251,18 @@ class Intent:
         w = so3_log_batch(R @ np.transpose(Rp, (0, 2, 1))) / self.T
         self.p_a, self.R_a = p[-1].copy(), R[-1].copy()
         self._prev_p, self._prev_R = p[-1].copy(), R[-1].copy()
-        h = self.hand
-        P[:, 0:3] = p
-        P[:, 3:12] = R.reshape(m, 9)
-        P[:, 12:15] = 0.0 if self.trans_passive else v
-        P[:, 15:18] = 0.0 if self.rot_passive else w
-        P[:, 18] = 0.0 if self.trans_passive else float(self.k_t)
-        P[:, 19] = h.damping
-        P[:, 20] = 0.0 if self.rot_passive else float(self.k_r)
-        P[:, 21] = h.rot_damping
-        P[:, 22:25] = force
-        P[:, 25] = in_handle
-        P[:, 26] = self.active
+        h, c = self.hand, PLAN_INDEX
+        P[:, plan_slice("ax", 3)] = p
+        P[:, plan_slice("R00", 9)] = R.reshape(m, 9)
+        P[:, plan_slice("vx", 3)] = 0.0 if self.trans_passive else v
+        P[:, plan_slice("wx", 3)] = 0.0 if self.rot_passive else w
+        P[:, c["k_t"]] = 0.0 if self.trans_passive else float(self.k_t)
+        P[:, c["b_t"]] = h.damping
+        P[:, c["k_r"]] = 0.0 if self.rot_passive else float(self.k_r)
+        P[:, c["b_r"]] = h.rot_damping
+        P[:, plan_slice("fx", 3)] = force
+        P[:, c["force_in_handle"]] = in_handle
+        P[:, c["segment"]] = self.active
         return P
 
     def _follow_batch(self, seg: dict, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -28,11 +28,11 @@ import numpy as np
 
 import virtmech as vm
 
+from . import inner
 from .geometry import COLUMNS as DIST_COLUMNS
 from .geometry import distances
 from .grip import finger_forces_batch
 from .human import HandImpedance, Intent
-from .inner import CompiledLoop, PythonLoop
 from .model import (
     BuiltModel,
     DeviceModel,
@@ -399,16 +399,6 @@ def log_columns(n: int, m: int) -> list[str]:
     )
 
 
-#: the columns the inner loop writes, cycle by cycle; the rest of log_columns (the distances
-#: from the mechanism, the PlanarArm's angles and the grip) follow from them and are
-#: computed after the run
-POST_COLUMNS = 13
-
-
-def kernel_columns(n: int, m: int) -> list[str]:
-    return log_columns(n, m)[:-POST_COLUMNS]
-
-
 UNITS = {
     "t": "s",
     "q": "rad",
@@ -532,7 +522,6 @@ def run(
     scenario,
     seed: int | None = None,
     progress: bool = False,
-    engine: str = "compiled",
     sink: Callable[[np.ndarray, list[str]], None] | None = None,
     keep_log: bool = True,
     chunk_s: float = CHUNK_S,
@@ -549,11 +538,9 @@ def run(
     LOG_IN_MEMORY_BYTES is kept in a memory-mapped file in `spill_dir` (if given; the file
     is removed at once where the system allows and lives until the log is released).
 
-    engine: "compiled" (the inner loop in C++, virtmech._core._SimKernel) or "python" (the
-    same loop written in Python, cycle by cycle: the reference the compiled one is tested
-    against, about 10x slower)."""
-    if engine not in ("compiled", "python"):
-        raise ValueError(f"engine: expected 'compiled' or 'python', got {engine!r}")
+    The control cycles and physics steps run in C++ (virtmech.sim.inner.ServoLoop); the
+    columns it does not write (distances, PlanarArm angles, grip) are filled after each
+    block."""
     if not chunk_s > 0:
         raise ValueError(f"chunk_s: expected a number > 0, got {chunk_s!r}")
     import mujoco
@@ -609,7 +596,6 @@ def run(
     planar = PlanarGeometry(mech) if S["mechanism"]["type"] == "PlanarArm" else None
 
     columns = log_columns(n, m)
-    K = len(kernel_columns(n, m))
     N = int(round(S["duration_s"] / T_ctrl)) + 1
     # the log is produced block by block (`block` cycles at a time, about chunk_s of
     # simulated time); each block is handed to `sink` and, unless the log would be too large
@@ -622,7 +608,7 @@ def run(
     sensor_settings = SensorSettings(**S["sensors"])
     sensors = Sensors(sensor_settings, n, T_ctrl, rng)
     comp = comp_bodies if grav_comp else []
-    loop_args = dict(
+    servo = inner.ServoLoop(
         controller=ctrl,
         model=model,
         data=data,
@@ -635,8 +621,8 @@ def run(
         comp_masses=[float(model.body_mass[b]) for b in comp],
         gravity=g_world,
         sensors=sensors,
+        log_columns=columns,
     )
-    inner = CompiledLoop(**loop_args) if engine == "compiled" else PythonLoop(**loop_args)
     post = _PostColumns(columns, mech.to_dict(), planar, contacts)
 
     # stretches of cycles: split where a segment starts (the hand's plan needs the handle's
@@ -660,9 +646,7 @@ def run(
             if sensor_settings.dropout_probability > 0.0
             else np.zeros(rows)
         )
-        out = np.empty((rows, K))
-        inner.run(k0, plan, noise, dropout, out)
-        buf[k0 - b0 : k1 - b0, :K] = out
+        servo.run(k0, plan, noise, dropout, buf[k0 - b0 : k1 - b0])
         if k1 - b0 == block or k1 == N:
             rows_done = buf[: k1 - b0]
             post(rows_done)
@@ -691,7 +675,7 @@ def run(
             "gravity": (g_world if gravity_on else np.zeros(3)).tolist(),
             "gravity_compensation": grav_comp,
             "integrator": "implicitfast",
-            "engine": engine,
+            "engine": "compiled",
         },
         "initial_q": q0.tolist(),
         "seed": seed,

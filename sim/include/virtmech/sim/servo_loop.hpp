@@ -1,0 +1,128 @@
+// The closed-loop simulation's servo-rate loop (virtmech.sim): control cycles with their
+// MuJoCo physics steps, driven through MuJoCo's C API.
+//
+// Per control cycle k (t = k T), for each of the `substeps` physics steps:
+//
+//     mj_step1                                  (kinematics at the current state)
+//     q, dq   <- device coordinates of the true state: q = Cinv (qpos - c0), dq = Cinv qvel
+//     first step only:
+//         qm, dqm <- sensors (noise, quantisation, dropout, delay, filtered difference)
+//         out     <- controller.step(qm, dqm, t)
+//         ctrl    <- out.torque - C^T sum_b J_com,b^T m_b g   (on the actuated joints)
+//     qfrc_applied <- Cinv^T J^T w_hand(plan row, handle pose and twist)
+//     mj_step2                                  (actuation, dynamics, integration)
+//
+// mj_step1 followed by mj_step2 is mj_step, with the inputs set in between. The hand's plan
+// (anchor, gains, push), the sensor noise and the dropouts are given, one row per cycle.
+//
+// Where each quantity sits in a plan row and in a log row is not declared here: the caller
+// gives the column of each field (PlanLayout, LogLayout), from its one table of columns
+// (virtmech.sim.human.PLAN_COLUMNS and virtmech.sim.loop.log_columns in Python).
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <cstddef>
+#include <vector>
+
+#include "virtmech/virtmech.hpp"
+
+namespace virtmech::sim {
+
+/// Column of each field of a hand-plan row (the first of its entries; -1: not given, which
+/// the loop refuses). Widths: anchor_p 3, anchor_R 9 (row-major), anchor_v 3, anchor_w 3,
+/// force 3 (world axes, or handle axes where force_in_handle != 0), the rest 1.
+struct PlanLayout {
+  int columns = -1;  //!< entries per row
+  int anchor_p = -1, anchor_R = -1, anchor_v = -1, anchor_w = -1;
+  int k_t = -1, b_t = -1, k_r = -1, b_r = -1;
+  int force = -1, force_in_handle = -1, segment = -1;
+};
+
+/// Column of each field of a log row (the first of its entries; -1: not written). n = the
+/// device's joints, m = the mechanism's. Widths: t 1; q, dq, qm, dqm, tau, tau_motor n;
+/// handle_p 3; stylus 3 (the handle's z axis); twist 6; wrench 6 (device on handle);
+/// status, ramp, iterations, iterations_star 1; theta, theta_star m; e, e_dot, e_star,
+/// e_star_dot, f_null, f_range 6; hand_wrench 6; anchor 3; segment 1.
+struct LogLayout {
+  int columns = -1;  //!< entries per row
+  int t = -1, q = -1, dq = -1, qm = -1, dqm = -1, handle_p = -1, stylus = -1, twist = -1,
+      wrench = -1, tau = -1, tau_motor = -1, status = -1, ramp = -1, iterations = -1,
+      iterations_star = -1, theta = -1, theta_star = -1, e = -1, e_dot = -1, e_star = -1,
+      e_star_dot = -1, f_null = -1, f_range = -1, hand_wrench = -1, anchor = -1, segment = -1;
+};
+
+/// How the device sits in the MuJoCo model, and the simulated driver.
+struct LoopSettings {
+  Eigen::MatrixXd coupling_inv;     //!< Cinv (n x n): device joints q = Cinv (qpos - c0)
+  Eigen::VectorXd coupling_offset;  //!< c0 (n)
+  std::vector<int> actuated;        //!< device joint of each MuJoCo actuator, in order
+  int substeps = 1;                 //!< physics steps per control cycle
+  double period_s = 1e-3;           //!< control period T [s]
+  std::vector<int> comp_bodies;     //!< bodies whose weight the motors compensate
+  std::vector<double> comp_masses;  //!< their masses [kg]
+  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  //!< for the compensation [m/s^2]
+  double quantum = 0.0;             //!< encoder step [rad]; 0: none
+  int delay_cycles = 0;             //!< sensor delay [cycles]
+  double velocity_alpha = 1.0;      //!< velocity low-pass: dqf += alpha (diff - dqf)
+};
+
+/// The loop. Holds the controller, model and data by reference: they must outlive it.
+class ServoLoop {
+ public:
+  /// Checks the model against the device (one MuJoCo joint per device joint, one actuator
+  /// per actuated joint) and the layouts; throws std::invalid_argument naming what is wrong.
+  ServoLoop(Controller& controller, const mjModel* model, mjData* data, LoopSettings settings,
+            const PlanLayout& plan, const LogLayout& log);
+
+  /// Runs cycles k0 .. k0 + rows - 1: plan (rows x plan.columns), noise (rows x n),
+  /// dropout (rows; != 0: the sample is lost), log (rows x log.columns) written.
+  /// MuJoCo's timer callback is off meanwhile (TimerOff) and restored on return or throw.
+  void run(long k0, std::size_t rows, const double* plan, const double* noise,
+           const double* dropout, double* log);
+
+  int dof() const noexcept { return n_; }
+  const PlanLayout& plan_layout() const noexcept { return plan_; }
+  const LogLayout& log_layout() const noexcept { return log_; }
+
+ private:
+  void read_state();
+  void sense(const double* noise, bool dropout);
+  void control(double t, const double* noise, bool dropout);
+  Vector6 hand_wrench(const double* p, const Pose& T, const Vector6& tw,
+                      const Eigen::Vector3d& force) const;
+  void cycle(long k, const double* plan, const double* noise, bool dropout, double* row);
+  void write_row(double t, const Pose& T_h, const Vector6& tw0, const Vector6& wrench0,
+                 const double* plan, double* row) const;
+
+  Controller& ctrl_;
+  const mjModel* m_;
+  mjData* d_;
+  LoopSettings s_;
+  PlanLayout plan_;
+  LogLayout log_;
+  int n_ = 0, mdof_ = 0;
+  JointMatrix Cinv_, CinvT_, CT_;
+  JointVector c0_;
+  std::vector<double> jacp_, ring_;
+  JointVector gs_, tau_g_, held_, prev_, dqf_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_,
+      received_, sv_;
+  long reads_ = 0;
+  Pose pose_ = Pose::Identity();
+  Jacobian J_;
+  CycleOutput out_;
+};
+
+/// MuJoCo's global timer callback mjcb_time switched off for a scope and restored when the
+/// last such scope in the process ends, on return or throw. The mujoco Python package
+/// installs a timer that reads the clock about twenty times per physics step (10 % of a
+/// run); while off, mjData.timer is not updated (in any thread).
+class TimerOff {
+ public:
+  TimerOff();
+  ~TimerOff();
+  TimerOff(const TimerOff&) = delete;
+  TimerOff& operator=(const TimerOff&) = delete;
+};
+
+}  // namespace virtmech::sim

@@ -1,0 +1,280 @@
+// The servo-rate loop of virtmech.sim (see servo_loop.hpp).
+#include "virtmech/sim/servo_loop.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+namespace virtmech::sim {
+
+namespace {
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument(what);
+}
+
+// a field of `width` entries at column `col` of a row of `columns`
+void check_field(const char* table, const char* name, int col, int width, int columns,
+                 bool optional) {
+  if (col == -1 && optional) return;
+  require(col >= 0 && col + width <= columns,
+          std::string(table) + "." + name + ": column " + std::to_string(col) + " (" +
+              std::to_string(width) + " entries) is not within a row of " +
+              std::to_string(columns) + " columns");
+}
+
+std::mutex timer_mutex;
+int timer_depth = 0;
+mjfTime timer_saved = nullptr;
+
+}  // namespace
+
+TimerOff::TimerOff() {
+  std::lock_guard<std::mutex> lock(timer_mutex);
+  if (timer_depth++ == 0) {
+    timer_saved = mjcb_time;
+    mjcb_time = nullptr;
+  }
+}
+
+TimerOff::~TimerOff() {
+  std::lock_guard<std::mutex> lock(timer_mutex);
+  if (--timer_depth == 0) {
+    mjcb_time = timer_saved;
+    timer_saved = nullptr;
+  }
+}
+
+ServoLoop::ServoLoop(Controller& controller, const mjModel* model, mjData* data,
+                     LoopSettings settings, const PlanLayout& plan, const LogLayout& log)
+    : ctrl_(controller), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+  require(model != nullptr && data != nullptr, "model, data: expected an mjModel and an mjData");
+  n_ = ctrl_.device().dof();
+  mdof_ = ctrl_.mechanism().dof();
+  const std::string n = std::to_string(n_);
+  require(m_->nq == n_ && m_->nv == n_,
+          "model: expected one MuJoCo hinge or slide joint per device joint (nq = nv = " + n +
+              "), got nq = " + std::to_string(m_->nq) + ", nv = " + std::to_string(m_->nv));
+  require(m_->nu == int(s_.actuated.size()),
+          "actuated: expected one device joint per MuJoCo actuator (" + std::to_string(m_->nu) +
+              "), got " + std::to_string(s_.actuated.size()));
+  for (int a : s_.actuated) {
+    require(a >= 0 && a < n_, "actuated: index " + std::to_string(a) + " is not a joint of the " +
+                                  n + "-joint device");
+  }
+  require(s_.coupling_inv.rows() == n_ && s_.coupling_inv.cols() == n_,
+          "coupling_inv: expected shape (" + n + ", " + n + ")");
+  require(s_.coupling_offset.size() == n_, "coupling_offset: expected shape (" + n + ",)");
+  require(s_.substeps >= 1, "substeps: expected >= 1, got " + std::to_string(s_.substeps));
+  require(s_.period_s > 0.0 && std::isfinite(s_.period_s),
+          "period_s: expected a positive number, got " + std::to_string(s_.period_s));
+  require(s_.comp_bodies.size() == s_.comp_masses.size(),
+          "comp_masses: expected one mass per body in comp_bodies");
+  for (int b : s_.comp_bodies) {
+    require(b >= 0 && b < m_->nbody, "comp_bodies: " + std::to_string(b) + " is not a body");
+  }
+  require(s_.delay_cycles >= 0, "delay_cycles: expected >= 0");
+  require(s_.quantum >= 0.0, "quantum: expected >= 0");
+
+  const int P = plan_.columns;
+  require(P > 0, "plan.columns: expected > 0");
+  check_field("plan", "anchor_p", plan_.anchor_p, 3, P, false);
+  check_field("plan", "anchor_R", plan_.anchor_R, 9, P, false);
+  check_field("plan", "anchor_v", plan_.anchor_v, 3, P, false);
+  check_field("plan", "anchor_w", plan_.anchor_w, 3, P, false);
+  check_field("plan", "k_t", plan_.k_t, 1, P, false);
+  check_field("plan", "b_t", plan_.b_t, 1, P, false);
+  check_field("plan", "k_r", plan_.k_r, 1, P, false);
+  check_field("plan", "b_r", plan_.b_r, 1, P, false);
+  check_field("plan", "force", plan_.force, 3, P, false);
+  check_field("plan", "force_in_handle", plan_.force_in_handle, 1, P, false);
+  check_field("plan", "segment", plan_.segment, 1, P, false);
+  const int L = log_.columns;
+  require(L > 0, "log.columns: expected > 0");
+  const struct {
+    const char* name;
+    int col, width;
+  } fields[] = {{"t", log_.t, 1},
+                {"q", log_.q, n_},
+                {"dq", log_.dq, n_},
+                {"qm", log_.qm, n_},
+                {"dqm", log_.dqm, n_},
+                {"handle_p", log_.handle_p, 3},
+                {"stylus", log_.stylus, 3},
+                {"twist", log_.twist, 6},
+                {"wrench", log_.wrench, 6},
+                {"tau", log_.tau, n_},
+                {"tau_motor", log_.tau_motor, n_},
+                {"status", log_.status, 1},
+                {"ramp", log_.ramp, 1},
+                {"iterations", log_.iterations, 1},
+                {"iterations_star", log_.iterations_star, 1},
+                {"theta", log_.theta, mdof_},
+                {"theta_star", log_.theta_star, mdof_},
+                {"e", log_.e, 6},
+                {"e_dot", log_.e_dot, 6},
+                {"e_star", log_.e_star, 6},
+                {"e_star_dot", log_.e_star_dot, 6},
+                {"f_null", log_.f_null, 6},
+                {"f_range", log_.f_range, 6},
+                {"hand_wrench", log_.hand_wrench, 6},
+                {"anchor", log_.anchor, 3},
+                {"segment", log_.segment, 1}};
+  for (const auto& f : fields) check_field("log", f.name, f.col, f.width, L, true);
+
+  Cinv_ = s_.coupling_inv;
+  CinvT_ = Cinv_.transpose();
+  c0_ = s_.coupling_offset;
+  // chain-coordinate forces g_s act on the device joints as C^T g_s (s = C q + c0)
+  CT_ = Cinv_.inverse().transpose();
+  jacp_.assign(3 * size_t(n_), 0.0);
+  ring_.assign(size_t(s_.delay_cycles + 1) * size_t(n_), 0.0);
+  for (JointVector* v : {&gs_, &tau_g_, &held_, &prev_, &dqf_, &q_, &dq_, &qm_, &cmd_,
+                         &q_cycle_, &dq_cycle_, &received_, &sv_}) {
+    v->setZero(n_);
+  }
+}
+
+void ServoLoop::run(long k0, std::size_t rows, const double* plan, const double* noise,
+                    const double* dropout, double* log) {
+  TimerOff timer_off;
+  const auto P = size_t(plan_.columns), L = size_t(log_.columns), n = size_t(n_);
+  for (size_t r = 0; r < rows; ++r) {
+    cycle(k0 + long(r), plan + r * P, noise + r * n, dropout[r] != 0.0, log + r * L);
+  }
+}
+
+void ServoLoop::read_state() {
+  const Eigen::Map<const Eigen::VectorXd> qpos(d_->qpos, n_), qvel(d_->qvel, n_);
+  sv_ = qpos - c0_;
+  q_.noalias() = Cinv_ * sv_;
+  dq_.noalias() = Cinv_ * qvel;
+}
+
+// sensors.py, Sensors.read, with the noise and dropout of this cycle given
+void ServoLoop::sense(const double* noise, bool dropout) {
+  const double quantum = s_.quantum;
+  for (int i = 0; i < n_; ++i) {
+    const double v = q_[i] + noise[i];
+    qm_[i] = quantum > 0.0 ? std::nearbyint(v / quantum) * quantum : v;
+  }
+  if (reads_ > 0 && dropout) qm_ = held_;
+  held_ = qm_;
+  const long delay = s_.delay_cycles, D = delay + 1;
+  std::copy(qm_.data(), qm_.data() + n_, ring_.data() + (reads_ % D) * n_);
+  const long oldest = reads_ > delay ? reads_ - delay : 0;
+  const Eigen::Map<const Eigen::VectorXd> received(ring_.data() + (oldest % D) * n_, n_);
+  if (reads_ > 0) dqf_ += s_.velocity_alpha * ((received - prev_) / s_.period_s - dqf_);
+  prev_ = received;
+  received_ = received;
+  ++reads_;
+}
+
+// human.py, hand_wrench, at pose T and twist tw
+Vector6 ServoLoop::hand_wrench(const double* p, const Pose& T, const Vector6& tw,
+                               const Eigen::Vector3d& force) const {
+  const Eigen::Map<const Eigen::Vector3d> pa(p + plan_.anchor_p), va(p + plan_.anchor_v),
+      wa(p + plan_.anchor_w);
+  const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> Ra(p + plan_.anchor_R);
+  Vector6 W;
+  W.head<3>() = p[plan_.k_t] * (pa - T.translation()) + p[plan_.b_t] * (va - tw.head<3>()) + force;
+  const Eigen::Matrix3d Rerr = Ra * T.linear().transpose();
+  W.tail<3>() = p[plan_.k_r] * so3_log(Rerr) + p[plan_.b_r] * (wa - tw.tail<3>());
+  return W;
+}
+
+void ServoLoop::cycle(long k, const double* plan, const double* noise, bool dropout,
+                      double* row) {
+  const double t = double(k) * s_.period_s;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  Vector6 tw0 = Vector6::Zero(), wrench0 = Vector6::Zero();
+  Pose T_h = Pose::Identity();
+  for (int s = 0; s < s_.substeps; ++s) {
+    mj_step1(m_, d_);
+    read_state();
+    ctrl_.device().forward_jacobian(q_.data(), pose_, J_);
+    if (s == 0) {
+      T_h = pose_;
+      q_cycle_ = q_;
+      dq_cycle_ = dq_;
+      control(t, noise, dropout);
+      force = Eigen::Map<const Eigen::Vector3d>(plan + plan_.force);
+      if (plan[plan_.force_in_handle] != 0.0) force = T_h.linear() * force;
+    }
+    const Vector6 tw = J_ * dq_;
+    const Vector6 W = hand_wrench(plan, pose_, tw, force);
+    if (s == 0) {
+      tw0 = tw;
+      wrench0 = W;
+    }
+    Eigen::Map<Eigen::VectorXd> qfrc(d_->qfrc_applied, n_);
+    qfrc.noalias() = CinvT_ * (J_.transpose() * W);
+    mj_step2(m_, d_);
+  }
+  write_row(t, T_h, tw0, wrench0, plan, row);
+}
+
+void ServoLoop::control(double t, const double* noise, bool dropout) {
+  sense(noise, dropout);
+  ctrl_.step(received_.data(), dqf_.data(), out_, t);
+  cmd_ = out_.torque;
+  if (!s_.comp_bodies.empty()) {
+    // gravity through the motors: -C^T sum_b J_com,b^T m_b g (kinematics from mj_step1)
+    gs_.setZero();
+    for (size_t b = 0; b < s_.comp_bodies.size(); ++b) {
+      mj_jacBodyCom(m_, d_, jacp_.data(), nullptr, s_.comp_bodies[b]);
+      for (int r = 0; r < 3; ++r) {
+        const double f = s_.comp_masses[b] * s_.gravity[r];
+        for (int j = 0; j < n_; ++j) gs_[j] += jacp_[size_t(r * n_ + j)] * f;
+      }
+    }
+    tau_g_.noalias() = CT_ * gs_;
+    for (int a : s_.actuated) cmd_[a] -= tau_g_[a];
+  }
+  for (size_t i = 0; i < s_.actuated.size(); ++i) d_->ctrl[i] = cmd_[s_.actuated[i]];
+}
+
+void ServoLoop::write_row(double t, const Pose& T_h, const Vector6& tw0, const Vector6& wrench0,
+                          const double* plan, double* row) const {
+  auto put = [row](int col, const auto& v) {
+    if (col < 0) return;
+    for (Eigen::Index i = 0; i < v.size(); ++i) row[col + i] = v[i];
+  };
+  auto put1 = [row](int col, double v) {
+    if (col >= 0) row[col] = v;
+  };
+  put1(log_.t, t);
+  put(log_.q, q_cycle_);
+  put(log_.dq, dq_cycle_);
+  put(log_.qm, received_);
+  put(log_.dqm, dqf_);
+  put(log_.handle_p, T_h.translation());
+  put(log_.stylus, T_h.linear().col(2));
+  put(log_.twist, tw0);
+  put(log_.wrench, out_.wrench);
+  put(log_.tau, out_.torque);
+  if (log_.tau_motor >= 0) {  // motor output: zero on passive joints
+    double* o = row + log_.tau_motor;
+    for (int j = 0; j < n_; ++j) o[j] = 0.0;
+    for (size_t i = 0; i < s_.actuated.size(); ++i) o[s_.actuated[i]] = d_->actuator_force[i];
+  }
+  put1(log_.status, double(out_.status));
+  put1(log_.ramp, out_.ramp);
+  put1(log_.iterations, double(out_.iterations));
+  put1(log_.iterations_star, double(out_.iterations_star));
+  put(log_.theta, out_.theta);
+  put(log_.theta_star, out_.theta_star);
+  put(log_.e, out_.error);
+  put(log_.e_dot, out_.error_dot);
+  put(log_.e_star, out_.error_star);
+  put(log_.e_star_dot, out_.error_star_dot);
+  put(log_.f_null, out_.wrench_null);
+  put(log_.f_range, out_.wrench_range);
+  put(log_.hand_wrench, wrench0);
+  put(log_.anchor, Eigen::Map<const Eigen::Vector3d>(plan + plan_.anchor_p));
+  put1(log_.segment, plan[plan_.segment]);
+}
+
+}  // namespace virtmech::sim
