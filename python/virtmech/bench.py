@@ -288,27 +288,39 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
 
 def mujoco_alone_s(result: Any, repeats: int = 3) -> float:
     """Wall time of MuJoCo alone for the run's physics steps: the run's own model (its
-    MJCF) from its initial state, stepped as many times as the run stepped it, with no
-    controls and no gravity so that it rests (no joint limit is hit on the way: the least
-    MuJoCo can spend on those steps; median of `repeats`). The run's loop time over this
-    is an upper bound on the cost of everything virtmech adds (controller, sensors, hand,
-    logging)."""
+    MJCF) from its initial state, replaying the run open loop in MuJoCo's own rollout (C,
+    no Python per step): every cycle's motor torques (`tau_motor`) and the hand's wrench
+    on the handle (`fh`, `mh`, applied to the hand body whose centre of mass is the
+    handle), held for the cycle's physics steps. The same model, the same number of steps
+    and nearly the same motion, so MuJoCo meets the same joint limits and friction;
+    median of `repeats`."""
     import mujoco
+    from mujoco import rollout
 
     from virtmech.sim.loop import make_device
     from virtmech.sim.model import coupling_of
 
     model = mujoco.MjModel.from_xml_string(result.info["mjcf"])
-    model.opt.gravity[:] = 0.0
+    data = mujoco.MjData(model)
     device = make_device(result.scenario.data["device"])
-    s0 = coupling_of(device).to_chain(np.asarray(result.info["initial_q"]))
-    steps = result.n_cycles * int(result.info["physics"]["substeps"])  # nsub per cycle
+    coupling = coupling_of(device)
+    n, nsub = device.dof, int(result.info["physics"]["substeps"])
+    data.qpos[:] = coupling.to_chain(np.asarray(result.info["initial_q"]))
+    data.qvel[:] = coupling.C @ result.cols(*[f"dq{i}" for i in range(n)])[0]
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state0 = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state0, spec)
+    act = np.flatnonzero(device.actuated)
+    ctrl = result.cols(*[f"tau_motor{i}" for i in act])
+    hand = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "hand")
+    xfrc = np.zeros((result.n_cycles, model.nbody, 6))
+    xfrc[:, hand] = result.cols("fhx", "fhy", "fhz", "mhx", "mhy", "mhz")
+    control = np.repeat(np.hstack([ctrl, xfrc.reshape(result.n_cycles, -1)]), nsub, axis=0)
+    control_spec = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED
     times = []
     for _ in range(repeats):
-        data = mujoco.MjData(model)
-        data.qpos[:] = s0
         t0 = time.perf_counter()
-        mujoco.mj_step(model, data, nstep=steps)
+        rollout.rollout(model, data, state0, control[None], control_spec=int(control_spec))
         times.append(time.perf_counter() - t0)
     return float(np.median(times))
 
