@@ -468,7 +468,8 @@ double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::
   return theta_p + dir * t.x;
 }
 
-Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept {
+Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start,
+                                  double& cos_a, double& sin_a) noexcept {
   // M = Rx(a) Ry(b) Rz(c): M(1,2) = -sin a cos b, M(2,2) = cos a cos b give a, and its
   // cosine and sine without a round trip through the angle (at the gimbal lock, |cos b| <
   // 1e-12, a is free: the start's, within 1e-12 of M); then Rx(-a) M = Ry(b) Rz(c) gives b
@@ -490,7 +491,11 @@ Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3
     e1[i] = wrap_near(e1[i], start[i]);
     e2[i] = wrap_near(e2[i], start[i]);
   }
-  return (e1 - start).squaredNorm() <= (e2 - start).squaredNorm() ? e1 : e2;
+  // the other branch's a is a + pi (whole turns added by wrap_near leave cos and sin be)
+  const bool first = (e1 - start).squaredNorm() <= (e2 - start).squaredNorm();
+  cos_a = first ? ca : -ca;
+  sin_a = first ? sa : -sa;
+  return first ? e1 : e2;
 }
 
 }  // namespace virtmech::detail

@@ -90,7 +90,10 @@ double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::
                      double c, double w_r) noexcept;
 
 /// Joint values of three revolute joints about x, y, z (in that order) giving the rotation
-/// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it).
-Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept;
+/// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it);
+/// cos_a, sin_a: the cosine and sine of the returned a (to rounding), which the wrist's
+/// Jacobian needs.
+Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start,
+                                  double& cos_a, double& sin_a) noexcept;
 
 }  // namespace virtmech::detail

@@ -156,7 +156,7 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
 }
 
 bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& start,
-                      JointVector& theta) const noexcept {
+                      JointVector& theta, Pose& T, Jacobian& J) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // position: |pivot + L R_n(x) d - p_R|^2 = const - 2 L r cos(x - theta_p)
@@ -177,6 +177,7 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
                                          0.5 * (nMn - 1.0), w_r);
   theta.resize(1);
   theta[0] = x + 2.0 * M_PI * std::round((start[0] - x) / (2.0 * M_PI));  // nearest start
+  forward_jacobian(theta.data(), T, J);
   return true;
 }
 
@@ -228,19 +229,39 @@ Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noe
   return B * Eigen::Vector3d(sb, -sa * cb, ca * cb);
 }
 
-// wrist angles for handle orientation R (R_tip = R Rx(pi)), nearest the start's
-Eigen::Vector3d wrist_angles(const Eigen::Matrix3d& B, const Eigen::Matrix3d& R,
-                             const double* start_abc) noexcept {
+// The wrist angles for handle orientation R (R_tip = R Rx(pi)), nearest the start's, into
+// theta from index `wrist` (the joints before it, already in theta, slide the tip from
+// `origin` along the columns slides[i] of B); and the handle pose and Jacobian at theta,
+// built from R and the tip instead of by walking the chain: the wrist's axes are B x,
+// B Rx(a) y and the stylus, all through the tip, and a's cosine and sine come with the
+// angles. The chain's forward_jacobian to rounding, without its sines and cosines.
+void place_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& origin, const int* slides,
+                 double length, const Eigen::Matrix3d& R, const JointVector& start, int wrist,
+                 JointVector& theta, Pose& T, Jacobian& J) noexcept {
   Eigen::Matrix3d R_tip;
   R_tip << R.col(0), -R.col(1), -R.col(2);
-  return detail::euler_xyz_nearest(B.transpose() * R_tip,
-                                   Eigen::Vector3d(start_abc[0], start_abc[1], start_abc[2]));
+  double ca, sa;
+  theta.segment<3>(wrist) = detail::euler_xyz_nearest(
+      B.transpose() * R_tip, Eigen::Vector3d(start.segment<3>(wrist)), ca, sa);
+  J.resize(6, wrist + 3);
+  Eigen::Vector3d tip = origin;
+  for (int i = 0; i < wrist; ++i) {
+    const Eigen::Vector3d slide = B.col(slides[i]);
+    tip += theta[i] * slide;
+    J.col(i) << slide, 0.0, 0.0, 0.0;
+  }
+  const Eigen::Vector3d arm = -length * R.col(2);  // tip to handle
+  T.linear() = R;
+  T.translation() = tip + arm;
+  T.makeAffine();
+  const Eigen::Vector3d axes[3] = {B.col(0), ca * B.col(1) + sa * B.col(2), R_tip.col(2)};
+  for (int i = 0; i < 3; ++i) J.col(wrist + i) << axes[i].cross(arm), axes[i];
 }
 
 }  // namespace
 
 bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start,
-                  JointVector& theta) const noexcept {
+                  JointVector& theta, Pose& T, Jacobian& J) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   const int wrist = unilateral_ ? 3 : 2;  // index of the first wrist joint
@@ -271,7 +292,8 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
   theta[0] = B.col(0).dot(tip - point_);
   theta[1] = B.col(1).dot(tip - point_);
   if (unilateral_) theta[2] = lift;
-  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
+  constexpr int kSlides[3] = {0, 1, 2};  // t1, t2, n
+  place_wrist(B, point_, kSlides, length_, R, start, wrist, theta, T, J);
   return true;
 }
 
@@ -297,7 +319,7 @@ void place_on_tip_set(const detail::TipSet& set, double length, const Eigen::Mat
 }  // namespace
 
 bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& start,
-                       JointVector& theta) const noexcept {
+                       JointVector& theta, Pose& T, Jacobian& J) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // the tip at the point, or on the half-line point + lambda normal, lambda >= 0
@@ -311,12 +333,13 @@ bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& 
   place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, along, lift);
   theta.resize(dof());
   if (unilateral_) theta[0] = lift;
-  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
+  constexpr int kSlides[1] = {2};  // n
+  place_wrist(B, point_, kSlides, length_, R, start, wrist, theta, T, J);
   return true;
 }
 
 bool LineGuide::place(const Pose& target, const Vector6& w, const JointVector& start,
-                      JointVector& theta) const noexcept {
+                      JointVector& theta, Pose& T, Jacobian& J) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // the tip on the line, or on the half-plane line + lambda normal, lambda >= 0
@@ -332,7 +355,8 @@ bool LineGuide::place(const Pose& target, const Vector6& w, const JointVector& s
   theta.resize(dof());
   theta[0] = along;
   if (unilateral_) theta[1] = lift;
-  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
+  constexpr int kSlides[2] = {0, 2};  // the line, n
+  place_wrist(B, point_, kSlides, length_, R, start, wrist, theta, T, J);
   return true;
 }
 

@@ -82,15 +82,13 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                           Jacobian& J, Vector6& error) noexcept {
   const int n = mechanism.dof();
   TrackResult result;
-  if (options.closed_form && mechanism.place(target, weights, theta0, theta)) {
-    Eval ev;
-    evaluate(mechanism, target, theta, weights, ev);
+  if (options.closed_form && mechanism.place(target, weights, theta0, theta, pose, J)) {
+    error = pose_error(target, pose);
+    const Vector6 We = weights.cwiseProduct(error);
+    const JointVector g = J.transpose() * We;
     result.converged = true;
-    result.residual = std::sqrt(std::max(ev.cost, 0.0));
-    result.active = active_set(mechanism, theta, ev.g, result.active_upper);
-    pose = ev.T;
-    J = ev.J;
-    error = ev.e;
+    result.residual = std::sqrt(std::max(error.dot(We), 0.0));
+    result.active = active_set(mechanism, theta, g, result.active_upper);
     return result;
   }
   theta = theta0;
