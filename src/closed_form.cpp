@@ -155,7 +155,7 @@ Eigen::Matrix3d rotated(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& k, do
 
 void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
                      const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
-                     Eigen::Matrix3d& R) noexcept {
+                     Eigen::Matrix3d& R, Eigen::Vector3d& turn) noexcept {
   const Eigen::Vector3d u_r = -R_R.col(2);
   Eigen::Vector3d k = u_r.cross(axis);
   const double kn = k.norm(), cr = u_r.dot(axis);
@@ -163,6 +163,7 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
   const Angle phi = solve_tilt(cost, w_p, w_r, position_minimiser(cost, phi_r), phi_r);
   if (phi.x == phi_r.x) {
     R = R_R;
+    turn.setZero();
     return;
   }
   // turn u_r toward the axis by phi_r - phi, about u_r x axis
@@ -172,22 +173,31 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
     const Eigen::Vector3d v = hint();
     Eigen::Vector3d h = v - v.dot(axis) * axis;
     if (h.norm() < 1e-12) h = any_orthogonal(axis);
-    R = rotated(R_R, u_r.cross(h).normalized(), c, std::abs(s));  // by |phi - phi_r|
+    const Eigen::Vector3d k_h = u_r.cross(h).normalized();
+    R = rotated(R_R, k_h, c, std::abs(s));  // by |phi - phi_r|
+    turn = std::abs(phi_r.x - phi.x) * k_h;
     return;
   }
-  R = rotated(R_R, k / kn, c, s);
+  k /= kn;
+  R = rotated(R_R, k, c, s);
+  turn = (phi_r.x - phi.x) * k;
 }
 
-Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u) noexcept {
+Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u,
+                            Eigen::Vector3d& turn) noexcept {
   const Eigen::Vector3d u_r = -R_R.col(2);
   Eigen::Vector3d k = u_r.cross(u);
   const double s = k.norm(), c = u_r.dot(u);
   if (s <= 1e-300) {
-    if (c > 0.0) return R_R;
+    if (c > 0.0) {
+      turn.setZero();
+      return R_R;
+    }
     k = any_orthogonal(u_r);
   } else {
     k /= s;
   }
+  turn = std::atan2(s, c) * k;
   const double n = std::hypot(s, c);  // the angle's cosine and sine: (c, s) / n
   return rotated(R_R, k, c / n, s / n);
 }
@@ -365,7 +375,8 @@ Eigen::Vector3d tilt_to_plane_or_point(const Eigen::Vector3d& point, const Eigen
     cost.p1 = -2.0 * d * length;
   }
   Eigen::Matrix3d R;
-  tilt_about_axis(R_R, axis, cost, w_p, w_r, LazyDirection([&] { return hint; }), R);
+  Eigen::Vector3d turn;
+  tilt_about_axis(R_R, axis, cost, w_p, w_r, LazyDirection([&] { return hint; }), R, turn);
   return -R.col(2);
 }
 

@@ -49,15 +49,18 @@ class LazyDirection {
 /// The handle orientation R minimising w_p * cost(cos angle(u, axis)) + w_r * angle(R, R_R)^2,
 /// u = -R z the stylus's tip-to-handle direction; R_R is the handle's orientation. Where
 /// u_R is along the axis, the stylus tilts toward `hint` (any length; the axis's
-/// orthogonal complement's first direction if that is degenerate too).
+/// orthogonal complement's first direction if that is degenerate too). `turn`: the rotation
+/// vector of that turn, R = exp([turn]x) R_R (angle at most pi), so that the pose error's
+/// rotation part is -turn without a logarithm.
 void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
                      const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
-                     Eigen::Matrix3d& R) noexcept;
+                     Eigen::Matrix3d& R, Eigen::Vector3d& turn) noexcept;
 
 /// The handle orientation R_R turned by the least rotation that takes its stylus's tip-to-
 /// handle direction -R_R z to the unit vector u (about u_R x u; a half turn about any axis
-/// orthogonal to u_R where u = -u_R).
-Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u) noexcept;
+/// orthogonal to u_R where u = -u_R); `turn` as for tilt_about_axis.
+Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u,
+                            Eigen::Vector3d& turn) noexcept;
 
 /// The set a stylus's tip is held to: point + s * free + lambda * one_sided, s any, lambda
 /// >= 0; either direction zero when absent (unit and orthogonal otherwise): a point, a line,

@@ -156,7 +156,7 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
 }
 
 bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& start,
-                      JointVector& theta, Pose& T, Jacobian& J) const noexcept {
+                      JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // position: |pivot + L R_n(x) d - p_R|^2 = const - 2 L r cos(x - theta_p)
@@ -178,6 +178,7 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
   theta.resize(1);
   theta[0] = x + 2.0 * M_PI * std::round((start[0] - x) / (2.0 * M_PI));  // nearest start
   forward_jacobian(theta.data(), T, J);
+  e = pose_error(target, T);
   return true;
 }
 
@@ -229,15 +230,17 @@ Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noe
   return B * Eigen::Vector3d(sb, -sa * cb, ca * cb);
 }
 
-// The wrist angles for handle orientation R (R_tip = R Rx(pi)), nearest the start's, into
-// theta from index `wrist` (the joints before it, already in theta, slide the tip from
-// `origin` along the columns slides[i] of B); and the handle pose and Jacobian at theta,
-// built from R and the tip instead of by walking the chain: the wrist's axes are B x,
-// B Rx(a) y and the stylus, all through the tip, and a's cosine and sine come with the
-// angles. The chain's forward_jacobian to rounding, without its sines and cosines.
+// The wrist angles for handle orientation R = exp([turn]x) R_target (R_tip = R Rx(pi)),
+// nearest the start's, into theta from index `wrist` (the joints before it, already in
+// theta, slide the tip from `origin` along the columns slides[i] of B); and the handle pose,
+// Jacobian and pose error at theta, built from R, the tip and the turn instead of by walking
+// the chain: the wrist's axes are B x, B Rx(a) y and the stylus, all through the tip, a's
+// cosine and sine come with the angles, and the error's rotation is -turn. The chain's
+// forward_jacobian and pose_error to rounding, without their sines, cosines and logarithm.
 void place_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& origin, const int* slides,
-                 double length, const Eigen::Matrix3d& R, const JointVector& start, int wrist,
-                 JointVector& theta, Pose& T, Jacobian& J) noexcept {
+                 double length, const Pose& target, const Eigen::Matrix3d& R,
+                 const Eigen::Vector3d& turn, const JointVector& start, int wrist,
+                 JointVector& theta, Pose& T, Jacobian& J, Vector6& e) noexcept {
   Eigen::Matrix3d R_tip;
   R_tip << R.col(0), -R.col(1), -R.col(2);
   double ca, sa;
@@ -256,12 +259,13 @@ void place_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& origin, const 
   T.makeAffine();
   const Eigen::Vector3d axes[3] = {B.col(0), ca * B.col(1) + sa * B.col(2), R_tip.col(2)};
   for (int i = 0; i < 3; ++i) J.col(wrist + i) << axes[i].cross(arm), axes[i];
+  e << target.translation() - T.translation(), -turn;
 }
 
 }  // namespace
 
 bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start,
-                  JointVector& theta, Pose& T, Jacobian& J) const noexcept {
+                  JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   const int wrist = unilateral_ ? 3 : 2;  // index of the first wrist joint
@@ -278,9 +282,10 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
     cost.p1 = -2.0 * d * length_;
   }
   Eigen::Matrix3d R;
+  Eigen::Vector3d turn;
   const auto start_direction = [&] { return wrist_direction(B, start.data() + wrist); };
   detail::tilt_about_axis(target.linear(), normal_, cost, w_p, w_r,
-                          detail::LazyDirection(start_direction), R);
+                          detail::LazyDirection(start_direction), R, turn);
   // the tip below the handle for that orientation, brought onto the plane (or left in
   // front of it when one-sided)
   Eigen::Vector3d tip = p_R + length_ * R.col(2);
@@ -293,22 +298,24 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
   theta[1] = B.col(1).dot(tip - point_);
   if (unilateral_) theta[2] = lift;
   constexpr int kSlides[3] = {0, 1, 2};  // t1, t2, n
-  place_wrist(B, point_, kSlides, length_, R, start, wrist, theta, T, J);
+  place_wrist(B, point_, kSlides, length_, target, R, turn, start, wrist, theta, T, J, e);
   return true;
 }
 
 namespace {
 
 // The weighted optimum of a stylus whose tip is held to `set` (weights w_p, w_r): the
-// handle orientation R and the tip's offsets along the set's free and one-sided directions.
+// handle orientation R (R = exp([turn]x) R_target) and the tip's offsets along the set's free
+// and one-sided directions.
 // `wrist` indexes the start's first wrist angle.
 void place_on_tip_set(const detail::TipSet& set, double length, const Eigen::Matrix3d& B,
                       const Pose& target, double w_p, double w_r, const JointVector& start,
-                      int wrist, Eigen::Matrix3d& R, double& along, double& lift) noexcept {
+                      int wrist, Eigen::Matrix3d& R, Eigen::Vector3d& turn, double& along,
+                      double& lift) noexcept {
   const Eigen::Vector3d u =
       detail::stylus_direction(set, target.translation(), length, target.linear(),
                                wrist_direction(B, start.data() + wrist), w_p, w_r);
-  R = detail::turn_stylus(target.linear(), u);
+  R = detail::turn_stylus(target.linear(), u, turn);
   const Eigen::Vector3d q = target.translation() - length * u - set.point;
   along = set.free.dot(q);
   // in contact the tip sits exactly on the set, the lift-off joint on its bound
@@ -319,7 +326,7 @@ void place_on_tip_set(const detail::TipSet& set, double length, const Eigen::Mat
 }  // namespace
 
 bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& start,
-                       JointVector& theta, Pose& T, Jacobian& J) const noexcept {
+                       JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // the tip at the point, or on the half-line point + lambda normal, lambda >= 0
@@ -329,17 +336,18 @@ bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& 
   if (unilateral_) set.one_sided = normal_;
   const int wrist = unilateral_ ? 1 : 0;
   Eigen::Matrix3d R;
+  Eigen::Vector3d turn;
   double along, lift;
-  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, along, lift);
+  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, turn, along, lift);
   theta.resize(dof());
   if (unilateral_) theta[0] = lift;
   constexpr int kSlides[1] = {2};  // n
-  place_wrist(B, point_, kSlides, length_, R, start, wrist, theta, T, J);
+  place_wrist(B, point_, kSlides, length_, target, R, turn, start, wrist, theta, T, J, e);
   return true;
 }
 
 bool LineGuide::place(const Pose& target, const Vector6& w, const JointVector& start,
-                      JointVector& theta, Pose& T, Jacobian& J) const noexcept {
+                      JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // the tip on the line, or on the half-plane line + lambda normal, lambda >= 0
@@ -350,13 +358,14 @@ bool LineGuide::place(const Pose& target, const Vector6& w, const JointVector& s
   if (unilateral_) set.one_sided = normal_;
   const int wrist = unilateral_ ? 2 : 1;
   Eigen::Matrix3d R;
+  Eigen::Vector3d turn;
   double along, lift;
-  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, along, lift);
+  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, turn, along, lift);
   theta.resize(dof());
   theta[0] = along;
   if (unilateral_) theta[1] = lift;
   constexpr int kSlides[2] = {0, 2};  // the line, n
-  place_wrist(B, point_, kSlides, length_, R, start, wrist, theta, T, J);
+  place_wrist(B, point_, kSlides, length_, target, R, turn, start, wrist, theta, T, J, e);
   return true;
 }
 

@@ -82,8 +82,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                           Jacobian& J, Vector6& error) noexcept {
   const int n = mechanism.dof();
   TrackResult result;
-  if (options.closed_form && mechanism.place(target, weights, theta0, theta, pose, J)) {
-    error = pose_error(target, pose);
+  if (options.closed_form && mechanism.place(target, weights, theta0, theta, pose, J, error)) {
     const Vector6 We = weights.cwiseProduct(error);
     const JointVector g = J.transpose() * We;
     result.converged = true;
