@@ -441,16 +441,39 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
   return best;
 }
 
+namespace {
+
+// the direction of q, atan2(q.y, q.x), with its cosine and sine
+double direction(const Eigen::Vector2d& q, double& cos_x, double& sin_x) noexcept {
+  const double x = std::atan2(q.y(), q.x());
+  const double n = q.norm();
+  if (n > 0.0 && std::isfinite(n)) {
+    cos_x = q.x() / n;
+    sin_x = q.y() / n;
+  } else {  // (+-0, +-0): atan2's signed zeros decide
+    cos_x = std::cos(x);
+    sin_x = std::sin(x);
+  }
+  return x;
+}
+
+}  // namespace
+
 double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
-                     double c, double w_r) noexcept {
+                     double c, double w_r, double& cos_x, double& sin_x) noexcept {
   // f(x) = -a cos(x - theta_p) + w_r acos(y)^2, y = c + b cos(x - theta_o); both terms grow
   // with the distance to their own minimiser, so f's minimum lies on the short arc between
   // theta_p and theta_o (any other point is farther from both than some point on it)
-  const double theta_p = std::atan2(p.y(), p.x());
+  double cp, sp;  // theta_p's cosine and sine
+  const double theta_p = direction(p, cp, sp);
   const double cross = p.x() * o.y() - p.y() * o.x(), dot = p.dot(o);
   const double span = std::atan2(cross, dot);  // theta_o - theta_p in [-pi, pi]
-  if (!(a > 0.0) || span == 0.0) return std::atan2(o.y(), o.x());
-  if (!(w_r > 0.0) || !(b > 0.0)) return theta_p;
+  if (!(a > 0.0) || span == 0.0) return direction(o, cos_x, sin_x);
+  if (!(w_r > 0.0) || !(b > 0.0)) {
+    cos_x = cp;
+    sin_x = sp;
+    return theta_p;
+  }
   // on t in [0, |span|] from theta_p toward theta_o: f' runs from - to +. With x - theta_p =
   // dir t and x - theta_o = dir (t - |span|), one sincos of t per step gives both terms
   const double dir = span > 0.0 ? 1.0 : -1.0, width = std::abs(span);
@@ -476,6 +499,8 @@ double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::
         f2 = a * ct - 2.0 * w_r * (dh * y1 * y1 + h * y2);
       },
       0.0, width, t0);
+  cos_x = cp * t.c - dir * sp * t.s;  // x = theta_p + dir t
+  sin_x = sp * t.c + dir * cp * t.s;
   return theta_p + dir * t.x;
 }
 

@@ -89,8 +89,10 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
 /// w_r >= 0): a position term least at theta_p and a rotation angle least at theta_o, as
 /// for one revolute joint with weights isotropic per block; theta_p and theta_o are the
 /// directions of the plane vectors p and o (any length). On the short arc between them.
+/// cos_x, sin_x: its cosine and sine (to rounding), from the solve's and p's, for the
+/// joint's pose and Jacobian.
 double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
-                     double c, double w_r) noexcept;
+                     double c, double w_r, double& cos_x, double& sin_x) noexcept;
 
 /// Joint values of three revolute joints about x, y, z (in that order) giving the rotation
 /// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it);

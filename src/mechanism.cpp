@@ -172,12 +172,24 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
   const double A = M.trace() - nMn;
   const double B = normal_.dot(
       Eigen::Vector3d(M(1, 2) - M(2, 1), M(2, 0) - M(0, 2), M(0, 1) - M(1, 0)));
+  double c, s;
   const double x = detail::arc_minimiser(2.0 * w_p * length_ * r, Eigen::Vector2d(vx, vy),
                                          0.5 * std::sqrt(A * A + B * B), Eigen::Vector2d(A, B),
-                                         0.5 * (nMn - 1.0), w_r);
+                                         0.5 * (nMn - 1.0), w_r, c, s);
   theta.resize(1);
   theta[0] = x + 2.0 * M_PI * std::round((start[0] - x) / (2.0 * M_PI));  // nearest start
-  forward_jacobian(theta.data(), T, J);
+  // the pose and Jacobian from the solve's cosine and sine (the chain's to rounding): the
+  // rest orientation turned by x about n, the handle at L (c d + s n x d) from the pivot
+  const Eigen::Vector3d arm =
+      length_ * (c * zero_direction_ + s * normal_.cross(zero_direction_));
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d u = rest_.col(j);
+    T.linear().col(j) = c * u + s * normal_.cross(u) + ((1.0 - c) * normal_.dot(u)) * normal_;
+  }
+  T.translation() = pivot_ + arm;
+  T.makeAffine();
+  J.resize(6, 1);
+  J.col(0) << normal_.cross(arm), normal_;
   e = pose_error(target, T);
   return true;
 }
