@@ -521,7 +521,7 @@ Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3
   e1 << a, std::atan2(n02, n22), std::atan2(n10, n11);
   e2 << e1[0] + M_PI, M_PI - e1[1], e1[2] + M_PI;  // the other branch (cos b < 0)
   auto wrap_near = [](double x, double ref) {
-    return x + 2.0 * M_PI * std::round((ref - x) / (2.0 * M_PI));
+    return x + 2.0 * M_PI * round_half_away((ref - x) / (2.0 * M_PI));
   };
   for (int i = 0; i < 3; ++i) {
     e1[i] = wrap_near(e1[i], start[i]);

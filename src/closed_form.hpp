@@ -12,6 +12,8 @@
 // to +: one bracketed Newton solve (docs/theory.md, section 4).
 #pragma once
 
+#include <cmath>
+
 #include "virtmech/types.hpp"
 
 namespace virtmech::detail {
@@ -93,6 +95,16 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
 /// joint's pose and Jacobian.
 double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
                      double c, double w_r, double& cos_x, double& sin_x) noexcept;
+
+/// std::round(t) written out: on baseline x86-64 std::round is a library call, and the
+/// placements take several a cycle. Exact (t - trunc(t) has no rounding error); NaN and
+/// |t| >= 2^52 (already integers, or not finite) go to std::round.
+inline double round_half_away(double t) noexcept {
+  if (!(std::abs(t) < 4503599627370496.0)) return std::round(t);
+  const double k = static_cast<double>(static_cast<long long>(t));  // trunc(t)
+  const double r = t - k;
+  return r >= 0.5 ? k + 1.0 : (r <= -0.5 ? k - 1.0 : k);
+}
 
 /// Joint values of three revolute joints about x, y, z (in that order) giving the rotation
 /// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it);

@@ -177,7 +177,8 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
                                          0.5 * std::sqrt(A * A + B * B), Eigen::Vector2d(A, B),
                                          0.5 * (nMn - 1.0), w_r, c, s);
   theta.resize(1);
-  theta[0] = x + 2.0 * M_PI * std::round((start[0] - x) / (2.0 * M_PI));  // nearest start
+  // nearest the start
+  theta[0] = x + 2.0 * M_PI * detail::round_half_away((start[0] - x) / (2.0 * M_PI));
   // the pose and Jacobian from the solve's cosine and sine (the chain's to rounding): the
   // rest orientation turned by x about n, the handle at L (c d + s n x d) from the pivot
   const Eigen::Vector3d arm =
