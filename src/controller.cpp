@@ -422,7 +422,8 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
 }
 
 // Every output of the cycle cleared, so that a faulted cycle reports nothing of the last
-// one (poses identity, errors zero): the caller may reuse one CycleOutput.
+// one (poses identity, errors zero): the caller may reuse one CycleOutput. (A good cycle
+// writes them itself.)
 void begin(int n, CycleOutput& out) noexcept {
   out.status = status::kOk;
   out.torque.setZero(n);
@@ -489,9 +490,10 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   const Mechanism& mech = *mechanism_;
   const ControllerModel& M = model_;
   ControllerData& d = data_;
-  begin(dev.dof(), out);
+  out.status = status::kOk;
 
   if (const std::uint32_t bad = check_input(M, dev, q, dq)) {
+    begin(dev.dof(), out);
     fault(dev, d, bad, out);
     out.theta = d.nearest.theta;
     out.theta_star = d.unpowered.theta;
@@ -499,6 +501,14 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
     d.last = out;
     return out.status;
   }
+  // a good cycle writes every output but these (a faulted one clears them all with begin()),
+  // so that none reports anything of the last cycle
+  if (!M.under_actuated_term) {
+    out.wrench_range.setZero();
+    out.error_star.setZero();
+    out.error_star_dot.setZero();
+  }
+  if (dev.fully_actuated()) out.wrench_unrendered.setZero();
   watchdog(M, d, t_s, out);
   device_kinematics(dev, d, q, dq);
   out.handle_pose = d.handle_pose;
