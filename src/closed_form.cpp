@@ -40,7 +40,8 @@ void position_derivatives(const TiltCost& k, double c, double s, double& g1, dou
 Angle position_minimiser(const TiltCost& k, const Angle& phi_r) noexcept {
   auto from_cosine = [](double c) {
     c = std::min(1.0, std::max(-1.0, c));
-    return Angle{std::acos(c), c, std::sqrt(1.0 - c * c)};
+    // (1 - c)(1 + c), not 1 - c^2: the sine keeps its relative accuracy near c = +-1
+    return Angle{std::acos(c), c, std::sqrt((1.0 - c) * (1.0 + c))};
   };
   if (k.one_sided) {
     if (!(k.b * phi_r.c > k.a)) return phi_r;  // already at zero cost
@@ -52,20 +53,37 @@ Angle position_minimiser(const TiltCost& k, const Angle& phi_r) noexcept {
   return phi_r;
 }
 
-// The root of f' in [lo, hi] where f' runs from - (at lo) to + (at hi), from x inside:
-// Newton steps kept inside the shrinking bracket, bisection where Newton would leave it.
-// derivatives(x, cos x, sin x, f1, f2) gives f'(x) and f''(x), so each step costs one
-// sincos; the root is returned with its cosine and sine, which the callers need next.
+// The angle a.x + d with its cosine and sine from a's: for |d| < 1e-3 by the angle sum with
+// the Taylor polynomials of cos d and sin d (their next terms, d^6 / 720 and d^7 / 5040,
+// are below 1e-20: exact to rounding), which saves a sincos; else directly.
+Angle advanced(const Angle& a, double d) noexcept {
+  const double x = a.x + d;
+  if (!(std::abs(d) < 1e-3)) return {x, std::cos(x), std::sin(x)};
+  const double h = x - a.x;  // the step x really took
+  const double h2 = h * h;
+  const double ch = 1.0 - h2 * (0.5 - h2 * (1.0 / 24.0));
+  const double sh = h * (1.0 - h2 * (1.0 / 6.0 - h2 * (1.0 / 120.0)));
+  return {x, a.c * ch - a.s * sh, a.s * ch + a.c * sh};
+}
+
+// The root of f' in [lo, hi] where f' runs from - (at lo) to + (at hi), from `start`
+// inside (with its cosine and sine): Newton steps kept inside the shrinking bracket,
+// bisection where Newton would leave it. derivatives(x, cos x, sin x, f1, f2) gives f'(x)
+// and f''(x); each step carries the cosine and sine on (advanced(): a sincos only for
+// steps of 1e-3 or more, and after a bisection); the root is returned with its cosine and
+// sine, which the callers need next.
 template <typename Derivatives>
-Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi, double x) noexcept {
+Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
+                       const Angle& start) noexcept {
   double last_step = 0.0;  // the last Newton step's length (0: none, or a bisection)
+  Angle at = start;
   for (int it = 0; it < 100; ++it) {
-    const double c = std::cos(x), s = std::sin(x);
+    const double x = at.x, c = at.c, s = at.s;
     double f1, f2;
     derivatives(x, c, s, f1, f2);
     if (f1 < 0.0) lo = x;
     else if (f1 > 0.0) hi = x;
-    else return {x, c, s};
+    else return at;
     const double rounding = 1e-16 * (1.0 + std::abs(x));
     if (f2 > 0.0) {
       const double step = f1 / f2, next = x - step;
@@ -77,23 +95,21 @@ Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi, dou
       const double a = std::abs(step);
       if (a <= rounding ||
           (next > lo && next < hi && a * a * a <= rounding * last_step * last_step)) {
-        // cosine and sine at next from those at x: |step| is at most about 1e-9 here, so
-        // the second-order expansion is exact to rounding
-        const double d = -step;
-        return {next, c - s * d - 0.5 * c * d * d, s + c * d - 0.5 * s * d * d};
+        return advanced(at, -step);
       }
       if (next > lo && next < hi) {
         last_step = a;
-        x = next;
+        at = advanced(at, -step);
         continue;
       }
     }
     // Newton would leave the bracket (or f'' <= 0, or NaN): bisect
     last_step = 0.0;
-    x = 0.5 * (lo + hi);
-    if (hi - lo <= 4e-16 * (1.0 + std::abs(hi))) return {x, std::cos(x), std::sin(x)};
+    const double mid = 0.5 * (lo + hi);
+    at = {mid, std::cos(mid), std::sin(mid)};
+    if (hi - lo <= 4e-16 * (1.0 + std::abs(hi))) return at;
   }
-  return {x, std::cos(x), std::sin(x)};
+  return at;
 }
 
 // for ang = acos(y) with s1 = sin(ang) >= 0 given: h = ang / s1 and dh/dy, so that
@@ -129,6 +145,8 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
   const double inset = 1e-12 * (hi - lo);
   const double x0 = std::min(std::max((c_p * phi0.x + c_r * phi_r.x) / (c_p + c_r), lo + inset),
                              hi - inset);
+  // its cosine and sine from the nearer end's (usually within rounding of it)
+  const Angle& end = std::abs(x0 - phi0.x) <= std::abs(x0 - phi_r.x) ? phi0 : phi_r;
   return bracketed_newton(
       [&](double x, double c, double s, double& f1, double& f2) {
         double g1, g2;
@@ -136,7 +154,7 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
         f1 = w_p * g1 + 2.0 * w_r * (x - phi_r.x);
         f2 = w_p * g2 + 2.0 * w_r;
       },
-      lo, hi, x0);
+      lo, hi, advanced(end, x0 - end.x));
 }
 
 // R_R turned about the unit axis k by the angle whose cosine and sine are c and s
@@ -487,6 +505,8 @@ double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::
   const double inset = (width <= 0.5 * M_PI ? 1e-12 : 1e-3) * width;
   const double t0 = std::min(std::max(width * 2.0 * w_r * b / (a + 2.0 * w_r * b), inset),
                              width - inset);
+  // its cosine and sine from the nearer end's: t = 0, or t = width (cosine and sine cs, ss)
+  const Angle end = t0 <= width - t0 ? Angle{0.0, 1.0, 0.0} : Angle{width, cs, ss};
   const Angle t = bracketed_newton(
       [&](double, double ct, double st, double& f1, double& f2) {
         const double so = dir * (st * cs - ct * ss), co = ct * cs + st * ss;
@@ -498,7 +518,7 @@ double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::
         f1 = a * st - dir * 2.0 * w_r * h * y1;  // d/dt = dir d/dx
         f2 = a * ct - 2.0 * w_r * (dh * y1 * y1 + h * y2);
       },
-      0.0, width, t0);
+      0.0, width, advanced(end, t0 - end.x));
   cos_x = cp * t.c - dir * sp * t.s;  // x = theta_p + dir t
   sin_x = sp * t.c + dir * cp * t.s;
   return theta_p + dir * t.x;
