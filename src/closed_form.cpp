@@ -40,7 +40,8 @@ void position_derivatives(const TiltCost& k, double c, double s, double& g1, dou
 Angle position_minimiser(const TiltCost& k, const Angle& phi_r) noexcept {
   auto from_cosine = [](double c) {
     c = std::min(1.0, std::max(-1.0, c));
-    return Angle{std::acos(c), c, std::sqrt(1.0 - c * c)};
+    // (1 - c)(1 + c), not 1 - c^2: the sine keeps its relative accuracy near c = +-1
+    return Angle{std::acos(c), c, std::sqrt((1.0 - c) * (1.0 + c))};
   };
   if (k.one_sided) {
     if (!(k.b * phi_r.c > k.a)) return phi_r;  // already at zero cost
@@ -52,20 +53,37 @@ Angle position_minimiser(const TiltCost& k, const Angle& phi_r) noexcept {
   return phi_r;
 }
 
-// The root of f' in [lo, hi] where f' runs from - (at lo) to + (at hi), from x inside:
-// Newton steps kept inside the shrinking bracket, bisection where Newton would leave it.
-// derivatives(x, cos x, sin x, f1, f2) gives f'(x) and f''(x), so each step costs one
-// sincos; the root is returned with its cosine and sine, which the callers need next.
+// The angle a.x + d with its cosine and sine from a's: for |d| < 1e-3 by the angle sum with
+// the Taylor polynomials of cos d and sin d (their next terms, d^6 / 720 and d^7 / 5040,
+// are below 1e-20: exact to rounding), which saves a sincos; else directly.
+Angle advanced(const Angle& a, double d) noexcept {
+  const double x = a.x + d;
+  if (!(std::abs(d) < 1e-3)) return {x, std::cos(x), std::sin(x)};
+  const double h = x - a.x;  // the step x really took
+  const double h2 = h * h;
+  const double ch = 1.0 - h2 * (0.5 - h2 * (1.0 / 24.0));
+  const double sh = h * (1.0 - h2 * (1.0 / 6.0 - h2 * (1.0 / 120.0)));
+  return {x, a.c * ch - a.s * sh, a.s * ch + a.c * sh};
+}
+
+// The root of f' in [lo, hi] where f' runs from - (at lo) to + (at hi), from `start`
+// inside (with its cosine and sine): Newton steps kept inside the shrinking bracket,
+// bisection where Newton would leave it. derivatives(x, cos x, sin x, f1, f2) gives f'(x)
+// and f''(x); each step carries the cosine and sine on (advanced(): a sincos only for
+// steps of 1e-3 or more, and after a bisection); the root is returned with its cosine and
+// sine, which the callers need next.
 template <typename Derivatives>
-Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi, double x) noexcept {
+Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
+                       const Angle& start) noexcept {
   double last_step = 0.0;  // the last Newton step's length (0: none, or a bisection)
+  Angle at = start;
   for (int it = 0; it < 100; ++it) {
-    const double c = std::cos(x), s = std::sin(x);
+    const double x = at.x, c = at.c, s = at.s;
     double f1, f2;
     derivatives(x, c, s, f1, f2);
     if (f1 < 0.0) lo = x;
     else if (f1 > 0.0) hi = x;
-    else return {x, c, s};
+    else return at;
     const double rounding = 1e-16 * (1.0 + std::abs(x));
     if (f2 > 0.0) {
       const double step = f1 / f2, next = x - step;
@@ -77,23 +95,21 @@ Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi, dou
       const double a = std::abs(step);
       if (a <= rounding ||
           (next > lo && next < hi && a * a * a <= rounding * last_step * last_step)) {
-        // cosine and sine at next from those at x: |step| is at most about 1e-9 here, so
-        // the second-order expansion is exact to rounding
-        const double d = -step;
-        return {next, c - s * d - 0.5 * c * d * d, s + c * d - 0.5 * s * d * d};
+        return advanced(at, -step);
       }
       if (next > lo && next < hi) {
         last_step = a;
-        x = next;
+        at = advanced(at, -step);
         continue;
       }
     }
     // Newton would leave the bracket (or f'' <= 0, or NaN): bisect
     last_step = 0.0;
-    x = 0.5 * (lo + hi);
-    if (hi - lo <= 4e-16 * (1.0 + std::abs(hi))) return {x, std::cos(x), std::sin(x)};
+    const double mid = 0.5 * (lo + hi);
+    at = {mid, std::cos(mid), std::sin(mid)};
+    if (hi - lo <= 4e-16 * (1.0 + std::abs(hi))) return at;
   }
-  return {x, std::cos(x), std::sin(x)};
+  return at;
 }
 
 // for ang = acos(y) with s1 = sin(ang) >= 0 given: h = ang / s1 and dh/dy, so that
@@ -129,6 +145,8 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
   const double inset = 1e-12 * (hi - lo);
   const double x0 = std::min(std::max((c_p * phi0.x + c_r * phi_r.x) / (c_p + c_r), lo + inset),
                              hi - inset);
+  // its cosine and sine from the nearer end's (usually within rounding of it)
+  const Angle& end = std::abs(x0 - phi0.x) <= std::abs(x0 - phi_r.x) ? phi0 : phi_r;
   return bracketed_newton(
       [&](double x, double c, double s, double& f1, double& f2) {
         double g1, g2;
@@ -136,7 +154,7 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
         f1 = w_p * g1 + 2.0 * w_r * (x - phi_r.x);
         f2 = w_p * g2 + 2.0 * w_r;
       },
-      lo, hi, x0);
+      lo, hi, advanced(end, x0 - end.x));
 }
 
 // R_R turned about the unit axis k by the angle whose cosine and sine are c and s
@@ -155,7 +173,7 @@ Eigen::Matrix3d rotated(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& k, do
 
 void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
                      const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
-                     Eigen::Matrix3d& R) noexcept {
+                     Eigen::Matrix3d& R, Eigen::Vector3d& turn) noexcept {
   const Eigen::Vector3d u_r = -R_R.col(2);
   Eigen::Vector3d k = u_r.cross(axis);
   const double kn = k.norm(), cr = u_r.dot(axis);
@@ -163,6 +181,7 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
   const Angle phi = solve_tilt(cost, w_p, w_r, position_minimiser(cost, phi_r), phi_r);
   if (phi.x == phi_r.x) {
     R = R_R;
+    turn.setZero();
     return;
   }
   // turn u_r toward the axis by phi_r - phi, about u_r x axis
@@ -172,22 +191,31 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
     const Eigen::Vector3d v = hint();
     Eigen::Vector3d h = v - v.dot(axis) * axis;
     if (h.norm() < 1e-12) h = any_orthogonal(axis);
-    R = rotated(R_R, u_r.cross(h).normalized(), c, std::abs(s));  // by |phi - phi_r|
+    const Eigen::Vector3d k_h = u_r.cross(h).normalized();
+    R = rotated(R_R, k_h, c, std::abs(s));  // by |phi - phi_r|
+    turn = std::abs(phi_r.x - phi.x) * k_h;
     return;
   }
-  R = rotated(R_R, k / kn, c, s);
+  k /= kn;
+  R = rotated(R_R, k, c, s);
+  turn = (phi_r.x - phi.x) * k;
 }
 
-Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u) noexcept {
+Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u,
+                            Eigen::Vector3d& turn) noexcept {
   const Eigen::Vector3d u_r = -R_R.col(2);
   Eigen::Vector3d k = u_r.cross(u);
   const double s = k.norm(), c = u_r.dot(u);
   if (s <= 1e-300) {
-    if (c > 0.0) return R_R;
+    if (c > 0.0) {
+      turn.setZero();
+      return R_R;
+    }
     k = any_orthogonal(u_r);
   } else {
     k /= s;
   }
+  turn = std::atan2(s, c) * k;
   const double n = std::hypot(s, c);  // the angle's cosine and sine: (c, s) / n
   return rotated(R_R, k, c / n, s / n);
 }
@@ -365,7 +393,8 @@ Eigen::Vector3d tilt_to_plane_or_point(const Eigen::Vector3d& point, const Eigen
     cost.p1 = -2.0 * d * length;
   }
   Eigen::Matrix3d R;
-  tilt_about_axis(R_R, axis, cost, w_p, w_r, LazyDirection([&] { return hint; }), R);
+  Eigen::Vector3d turn;
+  tilt_about_axis(R_R, axis, cost, w_p, w_r, LazyDirection([&] { return hint; }), R, turn);
   return -R.col(2);
 }
 
@@ -430,16 +459,39 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
   return best;
 }
 
+namespace {
+
+// the direction of q, atan2(q.y, q.x), with its cosine and sine
+double direction(const Eigen::Vector2d& q, double& cos_x, double& sin_x) noexcept {
+  const double x = std::atan2(q.y(), q.x());
+  const double n = q.norm();
+  if (n > 0.0 && std::isfinite(n)) {
+    cos_x = q.x() / n;
+    sin_x = q.y() / n;
+  } else {  // (+-0, +-0): atan2's signed zeros decide
+    cos_x = std::cos(x);
+    sin_x = std::sin(x);
+  }
+  return x;
+}
+
+}  // namespace
+
 double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
-                     double c, double w_r) noexcept {
+                     double c, double w_r, double& cos_x, double& sin_x) noexcept {
   // f(x) = -a cos(x - theta_p) + w_r acos(y)^2, y = c + b cos(x - theta_o); both terms grow
   // with the distance to their own minimiser, so f's minimum lies on the short arc between
   // theta_p and theta_o (any other point is farther from both than some point on it)
-  const double theta_p = std::atan2(p.y(), p.x());
+  double cp, sp;  // theta_p's cosine and sine
+  const double theta_p = direction(p, cp, sp);
   const double cross = p.x() * o.y() - p.y() * o.x(), dot = p.dot(o);
   const double span = std::atan2(cross, dot);  // theta_o - theta_p in [-pi, pi]
-  if (!(a > 0.0) || span == 0.0) return std::atan2(o.y(), o.x());
-  if (!(w_r > 0.0) || !(b > 0.0)) return theta_p;
+  if (!(a > 0.0) || span == 0.0) return direction(o, cos_x, sin_x);
+  if (!(w_r > 0.0) || !(b > 0.0)) {
+    cos_x = cp;
+    sin_x = sp;
+    return theta_p;
+  }
   // on t in [0, |span|] from theta_p toward theta_o: f' runs from - to +. With x - theta_p =
   // dir t and x - theta_o = dir (t - |span|), one sincos of t per step gives both terms
   const double dir = span > 0.0 ? 1.0 : -1.0, width = std::abs(span);
@@ -453,6 +505,8 @@ double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::
   const double inset = (width <= 0.5 * M_PI ? 1e-12 : 1e-3) * width;
   const double t0 = std::min(std::max(width * 2.0 * w_r * b / (a + 2.0 * w_r * b), inset),
                              width - inset);
+  // its cosine and sine from the nearer end's: t = 0, or t = width (cosine and sine cs, ss)
+  const Angle end = t0 <= width - t0 ? Angle{0.0, 1.0, 0.0} : Angle{width, cs, ss};
   const Angle t = bracketed_newton(
       [&](double, double ct, double st, double& f1, double& f2) {
         const double so = dir * (st * cs - ct * ss), co = ct * cs + st * ss;
@@ -464,11 +518,14 @@ double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::
         f1 = a * st - dir * 2.0 * w_r * h * y1;  // d/dt = dir d/dx
         f2 = a * ct - 2.0 * w_r * (dh * y1 * y1 + h * y2);
       },
-      0.0, width, t0);
+      0.0, width, advanced(end, t0 - end.x));
+  cos_x = cp * t.c - dir * sp * t.s;  // x = theta_p + dir t
+  sin_x = sp * t.c + dir * cp * t.s;
   return theta_p + dir * t.x;
 }
 
-Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept {
+Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start,
+                                  double& cos_a, double& sin_a) noexcept {
   // M = Rx(a) Ry(b) Rz(c): M(1,2) = -sin a cos b, M(2,2) = cos a cos b give a, and its
   // cosine and sine without a round trip through the angle (at the gimbal lock, |cos b| <
   // 1e-12, a is free: the start's, within 1e-12 of M); then Rx(-a) M = Ry(b) Rz(c) gives b
@@ -484,13 +541,17 @@ Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3
   e1 << a, std::atan2(n02, n22), std::atan2(n10, n11);
   e2 << e1[0] + M_PI, M_PI - e1[1], e1[2] + M_PI;  // the other branch (cos b < 0)
   auto wrap_near = [](double x, double ref) {
-    return x + 2.0 * M_PI * std::round((ref - x) / (2.0 * M_PI));
+    return x + 2.0 * M_PI * round_half_away((ref - x) / (2.0 * M_PI));
   };
   for (int i = 0; i < 3; ++i) {
     e1[i] = wrap_near(e1[i], start[i]);
     e2[i] = wrap_near(e2[i], start[i]);
   }
-  return (e1 - start).squaredNorm() <= (e2 - start).squaredNorm() ? e1 : e2;
+  // the other branch's a is a + pi (whole turns added by wrap_near leave cos and sin be)
+  const bool first = (e1 - start).squaredNorm() <= (e2 - start).squaredNorm();
+  cos_a = first ? ca : -ca;
+  sin_a = first ? sa : -sa;
+  return first ? e1 : e2;
 }
 
 }  // namespace virtmech::detail

@@ -12,6 +12,8 @@
 // to +: one bracketed Newton solve (docs/theory.md, section 4).
 #pragma once
 
+#include <cmath>
+
 #include "virtmech/types.hpp"
 
 namespace virtmech::detail {
@@ -49,15 +51,18 @@ class LazyDirection {
 /// The handle orientation R minimising w_p * cost(cos angle(u, axis)) + w_r * angle(R, R_R)^2,
 /// u = -R z the stylus's tip-to-handle direction; R_R is the handle's orientation. Where
 /// u_R is along the axis, the stylus tilts toward `hint` (any length; the axis's
-/// orthogonal complement's first direction if that is degenerate too).
+/// orthogonal complement's first direction if that is degenerate too). `turn`: the rotation
+/// vector of that turn, R = exp([turn]x) R_R (angle at most pi), so that the pose error's
+/// rotation part is -turn without a logarithm.
 void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
                      const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
-                     Eigen::Matrix3d& R) noexcept;
+                     Eigen::Matrix3d& R, Eigen::Vector3d& turn) noexcept;
 
 /// The handle orientation R_R turned by the least rotation that takes its stylus's tip-to-
 /// handle direction -R_R z to the unit vector u (about u_R x u; a half turn about any axis
-/// orthogonal to u_R where u = -u_R).
-Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u) noexcept;
+/// orthogonal to u_R where u = -u_R); `turn` as for tilt_about_axis.
+Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u,
+                            Eigen::Vector3d& turn) noexcept;
 
 /// The set a stylus's tip is held to: point + s * free + lambda * one_sided, s any, lambda
 /// >= 0; either direction zero when absent (unit and orthogonal otherwise): a point, a line,
@@ -86,11 +91,26 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
 /// w_r >= 0): a position term least at theta_p and a rotation angle least at theta_o, as
 /// for one revolute joint with weights isotropic per block; theta_p and theta_o are the
 /// directions of the plane vectors p and o (any length). On the short arc between them.
+/// cos_x, sin_x: its cosine and sine (to rounding), from the solve's and p's, for the
+/// joint's pose and Jacobian.
 double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
-                     double c, double w_r) noexcept;
+                     double c, double w_r, double& cos_x, double& sin_x) noexcept;
+
+/// std::round(t) written out: on baseline x86-64 std::round is a library call, and the
+/// placements take several a cycle. Exact (t - trunc(t) has no rounding error); NaN and
+/// |t| >= 2^52 (already integers, or not finite) go to std::round.
+inline double round_half_away(double t) noexcept {
+  if (!(std::abs(t) < 4503599627370496.0)) return std::round(t);
+  const double k = static_cast<double>(static_cast<long long>(t));  // trunc(t)
+  const double r = t - k;
+  return r >= 0.5 ? k + 1.0 : (r <= -0.5 ? k - 1.0 : k);
+}
 
 /// Joint values of three revolute joints about x, y, z (in that order) giving the rotation
-/// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it).
-Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start) noexcept;
+/// M = Rx(a) Ry(b) Rz(c), on the branch nearest `start` (each angle within pi of it);
+/// cos_a, sin_a: the cosine and sine of the returned a (to rounding), which the wrist's
+/// Jacobian needs.
+Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start,
+                                  double& cos_a, double& sin_a) noexcept;
 
 }  // namespace virtmech::detail

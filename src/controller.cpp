@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "small_products.hpp"
 #include "track_detail.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/se3.hpp"
@@ -207,7 +208,7 @@ void watchdog(const ControllerModel& M, ControllerData& d, double t_s, CycleOutp
 void device_kinematics(const Device& dev, ControllerData& d, const double* q,
                        const double* dq) noexcept {
   dev.forward_jacobian(q, d.handle_pose, d.J_R);
-  d.v_R.noalias() = d.J_R * Eigen::Map<const JointVector>(dq, dev.dof());
+  d.v_R = detail::jacobian_times(d.J_R, dq);
 }
 
 // J without the columns of the joints in `active`.
@@ -255,8 +256,7 @@ void error_rate(const ControllerModel& M, const Placement& p, const Vector6& W,
   if (!factorised) proj.compute(p.J_free, W);
   JointVector theta_dot;
   proj.fit(v_R, theta_dot);  // (J^T W J)^+ J^T W v_R
-  e_dot.noalias() = p.J_free * theta_dot;
-  e_dot -= v_R;
+  e_dot = detail::jacobian_times(p.J_free, theta_dot.data()) - v_R;
 }
 
 // The factorisations the terms' first pass needs, all at once (WeightedProjector::
@@ -402,7 +402,7 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
   if (out.ramp < 1.0) out.status |= status::kRamping;
   f *= scale * out.ramp;
 
-  out.torque.noalias() = d.J_R.transpose() * f;  // eq. 8
+  detail::jacobian_transpose_times(d.J_R, f, out.torque);  // eq. 8
   double tscale = 1.0;
   for (int i = 0; i < n; ++i) {
     if (!dev.actuated(i)) {
@@ -422,7 +422,8 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
 }
 
 // Every output of the cycle cleared, so that a faulted cycle reports nothing of the last
-// one (poses identity, errors zero): the caller may reuse one CycleOutput.
+// one (poses identity, errors zero): the caller may reuse one CycleOutput. (A good cycle
+// writes them itself.)
 void begin(int n, CycleOutput& out) noexcept {
   out.status = status::kOk;
   out.torque.setZero(n);
@@ -489,9 +490,10 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   const Mechanism& mech = *mechanism_;
   const ControllerModel& M = model_;
   ControllerData& d = data_;
-  begin(dev.dof(), out);
+  out.status = status::kOk;
 
   if (const std::uint32_t bad = check_input(M, dev, q, dq)) {
+    begin(dev.dof(), out);
     fault(dev, d, bad, out);
     out.theta = d.nearest.theta;
     out.theta_star = d.unpowered.theta;
@@ -499,6 +501,14 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
     d.last = out;
     return out.status;
   }
+  // a good cycle writes every output but these (a faulted one clears them all with begin()),
+  // so that none reports anything of the last cycle
+  if (!M.under_actuated_term) {
+    out.wrench_range.setZero();
+    out.error_star.setZero();
+    out.error_star_dot.setZero();
+  }
+  if (dev.fully_actuated()) out.wrench_unrendered.setZero();
   watchdog(M, d, t_s, out);
   device_kinematics(dev, d, q, dq);
   out.handle_pose = d.handle_pose;

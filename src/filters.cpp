@@ -52,6 +52,14 @@ void WeightedProjector::set(const Jacobian& J, const Vector6& w) noexcept {
     }
     w_ = w;
     w_finite_ = w.allFinite();
+    s_min_ = kInf;
+    s_max_ = 0.0;
+    for (int i = 0; i < 6; ++i) {
+      if (s_[i] > 0.0) {
+        s_min_ = std::min(s_min_, s_[i]);
+        s_max_ = std::max(s_max_, s_[i]);
+      }
+    }
   }
   finite_ = w_finite_;
 }
@@ -185,16 +193,17 @@ int WeightedProjector::start_factorisation() noexcept {
   const int m = m_;
   rank_ = 0;
   split_ = true;
-  bool finite = finite_;
-  for (int j = 0; j < m; ++j) {
-    a_.col(j) = s_.cwiseProduct(J_.col(j));
-    finite = finite && a_.col(j).allFinite();
-  }
-  finite_ = finite;
-  if (!finite_) return 0;
-  for (int j = 0; j < m; ++j) perm_[j] = j;
   // n2_[j]: squared norm of column j's rows k..5, recomputed as each step updates the column
-  for (int j = 0; j < m; ++j) n2_[j] = a_.col(j).squaredNorm();
+  Vector6 nonfinite = Vector6::Zero();  // sum of x - x: 0, or NaN if any x is not finite
+  for (int j = 0; j < m; ++j) {
+    const Vector6 col = s_.cwiseProduct(J_.col(j));
+    a_.col(j) = col;
+    nonfinite += col - col;
+    n2_[j] = col.squaredNorm();
+    perm_[j] = j;
+  }
+  finite_ = finite_ && (nonfinite.array() == 0.0).all();
+  if (!finite_) return 0;
   cut_ = 0.0;
   return std::min(6, m);
 }
@@ -202,7 +211,7 @@ int WeightedProjector::start_factorisation() noexcept {
 // Q: H_{k-1} ... H_0 A Pi = [R11 R12; 0 R22], column pivoting, stopped once the largest
 // remaining column (|R_kk| to come) is at most kPinvTolerance |R_00|: R22 counts as 0.
 // Step k; false when it stops.
-bool WeightedProjector::pivot_step(int k) noexcept {
+[[gnu::always_inline]] inline bool WeightedProjector::pivot_step(int k) noexcept {
   const int m = m_;
   double* n2 = n2_;
   int p = k;
@@ -262,18 +271,12 @@ void WeightedProjector::finish_factorisation() noexcept {
     for (int i = 0; i < k; ++i) reflect(ztau_[k], z, 6, a[i + 6 * k], a + i + 6 * r, 6, m - r);
   }
   if (r == 0) return;
-  double tmin = kInf, tmax = 0.0, smin = kInf, smax = 0.0;
+  double tmin = kInf, tmax = 0.0;
   for (int i = 0; i < r; ++i) {
     tmin = std::min(tmin, std::abs(a_(i, i)));
     tmax = std::max(tmax, std::abs(a_(i, i)));
   }
-  for (int i = 0; i < 6; ++i) {
-    if (s_[i] > 0.0) {
-      smin = std::min(smin, s_[i]);
-      smax = std::max(smax, s_[i]);
-    }
-  }
-  split_ = smax * tmin <= tmax * smin;  // kappa(S) <= kappa(T)
+  split_ = s_max_ * tmin <= tmax * s_min_;  // kappa(S) <= kappa(T)
 }
 
 Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {

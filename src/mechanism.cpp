@@ -156,7 +156,7 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
 }
 
 bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& start,
-                      JointVector& theta) const noexcept {
+                      JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // position: |pivot + L R_n(x) d - p_R|^2 = const - 2 L r cos(x - theta_p)
@@ -172,11 +172,26 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
   const double A = M.trace() - nMn;
   const double B = normal_.dot(
       Eigen::Vector3d(M(1, 2) - M(2, 1), M(2, 0) - M(0, 2), M(0, 1) - M(1, 0)));
+  double c, s;
   const double x = detail::arc_minimiser(2.0 * w_p * length_ * r, Eigen::Vector2d(vx, vy),
                                          0.5 * std::sqrt(A * A + B * B), Eigen::Vector2d(A, B),
-                                         0.5 * (nMn - 1.0), w_r);
+                                         0.5 * (nMn - 1.0), w_r, c, s);
   theta.resize(1);
-  theta[0] = x + 2.0 * M_PI * std::round((start[0] - x) / (2.0 * M_PI));  // nearest start
+  // nearest the start
+  theta[0] = x + 2.0 * M_PI * detail::round_half_away((start[0] - x) / (2.0 * M_PI));
+  // the pose and Jacobian from the solve's cosine and sine (the chain's to rounding): the
+  // rest orientation turned by x about n, the handle at L (c d + s n x d) from the pivot
+  const Eigen::Vector3d arm =
+      length_ * (c * zero_direction_ + s * normal_.cross(zero_direction_));
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d u = rest_.col(j);
+    T.linear().col(j) = c * u + s * normal_.cross(u) + ((1.0 - c) * normal_.dot(u)) * normal_;
+  }
+  T.translation() = pivot_ + arm;
+  T.makeAffine();
+  J.resize(6, 1);
+  J.col(0) << normal_.cross(arm), normal_;
+  e = pose_error(target, T);
   return true;
 }
 
@@ -228,19 +243,42 @@ Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noe
   return B * Eigen::Vector3d(sb, -sa * cb, ca * cb);
 }
 
-// wrist angles for handle orientation R (R_tip = R Rx(pi)), nearest the start's
-Eigen::Vector3d wrist_angles(const Eigen::Matrix3d& B, const Eigen::Matrix3d& R,
-                             const double* start_abc) noexcept {
+// The wrist angles for handle orientation R = exp([turn]x) R_target (R_tip = R Rx(pi)),
+// nearest the start's, into theta from index `wrist` (the joints before it, already in
+// theta, slide the tip from `origin` along the columns slides[i] of B); and the handle pose,
+// Jacobian and pose error at theta, built from R, the tip and the turn instead of by walking
+// the chain: the wrist's axes are B x, B Rx(a) y and the stylus, all through the tip, a's
+// cosine and sine come with the angles, and the error's rotation is -turn. The chain's
+// forward_jacobian and pose_error to rounding, without their sines, cosines and logarithm.
+void place_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& origin, const int* slides,
+                 double length, const Pose& target, const Eigen::Matrix3d& R,
+                 const Eigen::Vector3d& turn, const JointVector& start, int wrist,
+                 JointVector& theta, Pose& T, Jacobian& J, Vector6& e) noexcept {
   Eigen::Matrix3d R_tip;
   R_tip << R.col(0), -R.col(1), -R.col(2);
-  return detail::euler_xyz_nearest(B.transpose() * R_tip,
-                                   Eigen::Vector3d(start_abc[0], start_abc[1], start_abc[2]));
+  double ca, sa;
+  theta.segment<3>(wrist) = detail::euler_xyz_nearest(
+      B.transpose() * R_tip, Eigen::Vector3d(start.segment<3>(wrist)), ca, sa);
+  J.resize(6, wrist + 3);
+  Eigen::Vector3d tip = origin;
+  for (int i = 0; i < wrist; ++i) {
+    const Eigen::Vector3d slide = B.col(slides[i]);
+    tip += theta[i] * slide;
+    J.col(i) << slide, 0.0, 0.0, 0.0;
+  }
+  const Eigen::Vector3d arm = -length * R.col(2);  // tip to handle
+  T.linear() = R;
+  T.translation() = tip + arm;
+  T.makeAffine();
+  const Eigen::Vector3d axes[3] = {B.col(0), ca * B.col(1) + sa * B.col(2), R_tip.col(2)};
+  for (int i = 0; i < 3; ++i) J.col(wrist + i) << axes[i].cross(arm), axes[i];
+  e << target.translation() - T.translation(), -turn;
 }
 
 }  // namespace
 
 bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start,
-                  JointVector& theta) const noexcept {
+                  JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   const int wrist = unilateral_ ? 3 : 2;  // index of the first wrist joint
@@ -257,9 +295,10 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
     cost.p1 = -2.0 * d * length_;
   }
   Eigen::Matrix3d R;
+  Eigen::Vector3d turn;
   const auto start_direction = [&] { return wrist_direction(B, start.data() + wrist); };
   detail::tilt_about_axis(target.linear(), normal_, cost, w_p, w_r,
-                          detail::LazyDirection(start_direction), R);
+                          detail::LazyDirection(start_direction), R, turn);
   // the tip below the handle for that orientation, brought onto the plane (or left in
   // front of it when one-sided)
   Eigen::Vector3d tip = p_R + length_ * R.col(2);
@@ -271,22 +310,25 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
   theta[0] = B.col(0).dot(tip - point_);
   theta[1] = B.col(1).dot(tip - point_);
   if (unilateral_) theta[2] = lift;
-  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
+  constexpr int kSlides[3] = {0, 1, 2};  // t1, t2, n
+  place_wrist(B, point_, kSlides, length_, target, R, turn, start, wrist, theta, T, J, e);
   return true;
 }
 
 namespace {
 
 // The weighted optimum of a stylus whose tip is held to `set` (weights w_p, w_r): the
-// handle orientation R and the tip's offsets along the set's free and one-sided directions.
+// handle orientation R (R = exp([turn]x) R_target) and the tip's offsets along the set's free
+// and one-sided directions.
 // `wrist` indexes the start's first wrist angle.
 void place_on_tip_set(const detail::TipSet& set, double length, const Eigen::Matrix3d& B,
                       const Pose& target, double w_p, double w_r, const JointVector& start,
-                      int wrist, Eigen::Matrix3d& R, double& along, double& lift) noexcept {
+                      int wrist, Eigen::Matrix3d& R, Eigen::Vector3d& turn, double& along,
+                      double& lift) noexcept {
   const Eigen::Vector3d u =
       detail::stylus_direction(set, target.translation(), length, target.linear(),
                                wrist_direction(B, start.data() + wrist), w_p, w_r);
-  R = detail::turn_stylus(target.linear(), u);
+  R = detail::turn_stylus(target.linear(), u, turn);
   const Eigen::Vector3d q = target.translation() - length * u - set.point;
   along = set.free.dot(q);
   // in contact the tip sits exactly on the set, the lift-off joint on its bound
@@ -297,7 +339,7 @@ void place_on_tip_set(const detail::TipSet& set, double length, const Eigen::Mat
 }  // namespace
 
 bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& start,
-                       JointVector& theta) const noexcept {
+                       JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // the tip at the point, or on the half-line point + lambda normal, lambda >= 0
@@ -307,16 +349,18 @@ bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& 
   if (unilateral_) set.one_sided = normal_;
   const int wrist = unilateral_ ? 1 : 0;
   Eigen::Matrix3d R;
+  Eigen::Vector3d turn;
   double along, lift;
-  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, along, lift);
+  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, turn, along, lift);
   theta.resize(dof());
   if (unilateral_) theta[0] = lift;
-  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
+  constexpr int kSlides[1] = {2};  // n
+  place_wrist(B, point_, kSlides, length_, target, R, turn, start, wrist, theta, T, J, e);
   return true;
 }
 
 bool LineGuide::place(const Pose& target, const Vector6& w, const JointVector& start,
-                      JointVector& theta) const noexcept {
+                      JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // the tip on the line, or on the half-plane line + lambda normal, lambda >= 0
@@ -327,12 +371,14 @@ bool LineGuide::place(const Pose& target, const Vector6& w, const JointVector& s
   if (unilateral_) set.one_sided = normal_;
   const int wrist = unilateral_ ? 2 : 1;
   Eigen::Matrix3d R;
+  Eigen::Vector3d turn;
   double along, lift;
-  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, along, lift);
+  place_on_tip_set(set, length_, B, target, w_p, w_r, start, wrist, R, turn, along, lift);
   theta.resize(dof());
   theta[0] = along;
   if (unilateral_) theta[1] = lift;
-  theta.segment<3>(wrist) = wrist_angles(B, R, start.data() + wrist);
+  constexpr int kSlides[2] = {0, 2};  // the line, n
+  place_wrist(B, point_, kSlides, length_, target, R, turn, start, wrist, theta, T, J, e);
   return true;
 }
 

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "small_cholesky.hpp"
+#include "small_products.hpp"
 #include "track_detail.hpp"
 #include "virtmech/se3.hpp"
 
@@ -28,7 +29,8 @@ inline void evaluate(const Mechanism& m, const Pose& target, const JointVector& 
   ev.e = pose_error(target, ev.T);
   const Vector6 We = W.cwiseProduct(ev.e);
   ev.cost = ev.e.dot(We);
-  ev.g.noalias() = ev.J.transpose() * We;  // eq. 23's residual; -1/2 of the cost gradient
+  // eq. 23's residual; -1/2 of the cost gradient
+  detail::jacobian_transpose_times(ev.J, We, ev.g);
 }
 
 inline double cost_at(const Mechanism& m, const Pose& target, const JointVector& theta,
@@ -82,15 +84,13 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                           Jacobian& J, Vector6& error) noexcept {
   const int n = mechanism.dof();
   TrackResult result;
-  if (options.closed_form && mechanism.place(target, weights, theta0, theta)) {
-    Eval ev;
-    evaluate(mechanism, target, theta, weights, ev);
+  if (options.closed_form && mechanism.place(target, weights, theta0, theta, pose, J, error)) {
+    const Vector6 We = weights.cwiseProduct(error);
+    JointVector g;
+    detail::jacobian_transpose_times(J, We, g);
     result.converged = true;
-    result.residual = std::sqrt(std::max(ev.cost, 0.0));
-    result.active = active_set(mechanism, theta, ev.g, result.active_upper);
-    pose = ev.T;
-    J = ev.J;
-    error = ev.e;
+    result.residual = std::sqrt(std::max(error.dot(We), 0.0));
+    result.active = active_set(mechanism, theta, g, result.active_upper);
     return result;
   }
   theta = theta0;

@@ -72,6 +72,7 @@ class WeightedProjector {
   Vector6 w_;             // the diagonal weights s_, s_inv_, free_ were derived from
   Vector6 s_, s_inv_;     // sqrt of the (eigen)weights and its pseudo-inverse
   Vector6 free_;          // 1 where the weight is 0, else 0
+  double s_min_ = kInf, s_max_ = 0.0;  // the least and largest of s_ > 0: kappa(S)
   Matrix6 V_;             // eigenvectors of a full W (rotated_ only)
   double n2_[kMaxDof] = {};  // while factorising: squared norms of the columns' rows k..5
   double cut_ = 0.0;      // while factorising: (kPinvTolerance |R_00|)^2

@@ -44,10 +44,13 @@ class Mechanism {
   /// Optional closed-form placement: theta (dof() entries) minimising the weighted pose
   /// error e^T diag(w) e, e = pose_error(target, forward(theta)), within the limits, on the
   /// branch nearest `start`. Returns false where it has none for these weights; the
-  /// placement then runs the weighted Gauss-Newton of eqs. 18-20. noexcept, allocation-free.
+  /// placement then runs the weighted Gauss-Newton of eqs. 18-20. On true, T and J are the
+  /// handle pose and Jacobian at theta (forward_jacobian's, to rounding) and e the pose
+  /// error pose_error(target, T): a closed form has most of them at hand, and the placement
+  /// needs them next. noexcept, allocation-free.
   virtual bool place(const Pose& target, const Vector6& w, const JointVector& start,
-                     JointVector& theta) const noexcept {
-    (void)target, (void)w, (void)start, (void)theta;
+                     JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
+    (void)target, (void)w, (void)start, (void)theta, (void)T, (void)J, (void)e;
     return false;
   }
 
@@ -97,7 +100,7 @@ class PlanarArm final : public ChainMechanism {
   const Eigen::Vector3d& zero_direction() const noexcept { return zero_direction_; }
   /// Closed form for weights isotropic within position and within rotation.
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
-             JointVector& theta) const noexcept override;
+             JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
  private:
   Eigen::Vector3d pivot_, normal_, zero_direction_;
@@ -125,7 +128,7 @@ class Probe final : public ChainMechanism {
   bool unilateral() const noexcept { return unilateral_; }
   /// Closed form for weights isotropic within position and within rotation (every default).
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
-             JointVector& theta) const noexcept override;
+             JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
  private:
   Eigen::Vector3d point_, normal_, tangent_;
@@ -148,7 +151,7 @@ class PointPivot final : public ChainMechanism {
   /// Closed form for weights isotropic within position and within rotation (bilateral: one
   /// scalar solve; unilateral: one solve in the stylus's two tilt angles).
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
-             JointVector& theta) const noexcept override;
+             JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
  private:
   Eigen::Vector3d point_, normal_, tangent_;
@@ -173,7 +176,7 @@ class LineGuide final : public ChainMechanism {
   /// position and the roll about the stylus drop out exactly, one solve in the stylus's two
   /// tilt angles remains.
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
-             JointVector& theta) const noexcept override;
+             JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
  private:
   Eigen::Vector3d point_, direction_, normal_;
