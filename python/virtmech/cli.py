@@ -3,6 +3,7 @@
 virtmech demo [--out DIR] [--only NAME...]   every shipped scenario, summary.json, index.html
 virtmech run SCENARIO [--out DIR]     one scenario (a TOML path or a shipped name)
              [--seed N] [--duration S]
+             [--format csv|parquet]   the log as log.csv (default) or log.parquet (pyarrow)
 virtmech scenarios                    the shipped scenarios
 virtmech schema                       the JSON Schema of the scenario format
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
@@ -53,34 +54,72 @@ def _out_dir(path: str | Path, flag: str = "--out") -> Path:
     return out
 
 
-def _run_one(scenario, out_dir: Path, seed, progress: bool) -> dict:
+#: the log's file formats (`--format`): csv (default) or parquet (needs pyarrow)
+LOG_FORMATS = ("csv", "parquet")
+
+
+def _require_format(fmt: str) -> None:
+    """A UserError saying how to install pyarrow if `fmt` needs it and it is missing."""
+    if fmt == "parquet":
+        from .sim.logio import require_pyarrow
+
+        try:
+            require_pyarrow()
+        except ImportError as e:
+            raise UserError(f"--format parquet: {e}") from None
+
+
+def _run_one(
+    scenario,
+    out_dir: Path,
+    seed,
+    progress: bool,
+    fmt: str = "csv",
+    chunk_s: float | None = None,
+) -> dict:
+    """Runs a scenario into out_dir: the log (log.csv or log.parquet) written block by
+    block as the run goes, run.json, the figures; returns the metrics. The metrics and the
+    figures read the log back block by block from a scratch file of the columns they need
+    (removed at the end), so memory stays about one block (`chunk_s` of simulated time,
+    default virtmech.sim.loop.CHUNK_S) however long the run."""
     from . import sim
-    from .sim.output import (
-        LARGE_LOG_BYTES,
-        CsvLog,
-        estimate_csv_bytes,
-        metrics,
-        write_run,
-    )
+    from .sim.logio import CsvLog, LogFile, ParquetLog, Tee
+    from .sim.loop import CHUNK_S, make_device
+    from .sim.output import LARGE_LOG_BYTES, estimate_log_bytes, metric_columns, metrics, write_run
     from .viz import write_figures
+    from .viz.figures import FIGURE_COLUMNS
 
     out = _out_dir(out_dir)
     S = scenario.data
     rows = int(round(S["duration_s"] / S["controller"]["period_s"])) + 1
     cols = 140  # about: the exact count depends on the device and the mechanism
-    size = estimate_csv_bytes(rows, cols)
+    name = f"log.{fmt}"
+    size = estimate_log_bytes(rows, cols, fmt)
     if size > LARGE_LOG_BYTES:
         print(
-            f"virtmech: warning: {scenario.name}: log.csv will be about {_size(size)} "
+            f"virtmech: warning: {scenario.name}: {name} will be about {_size(size)} "
             f"({rows:,} rows of about {cols} columns, {scenario.duration_s:g} s at "
             f"{1 / S['controller']['period_s']:g} Hz)",
             file=sys.stderr,
         )
-    with CsvLog(out / "log.csv") as csv:
-        result = sim.run(scenario, seed=seed, progress=progress, sink=csv, spill_dir=out)
-    write_run(result, out, log=False)
-    write_figures(result, out)
-    return metrics(result)
+    n = make_device(S["device"]).dof
+    keep = list(dict.fromkeys(metric_columns(n) + FIGURE_COLUMNS))
+    writer = ParquetLog(out / name) if fmt == "parquet" else CsvLog(out / name)
+    with writer, LogFile(out, keep) as scratch:
+        result = sim.run(
+            scenario,
+            seed=seed,
+            progress=progress,
+            sink=Tee(writer, scratch),
+            keep_log=False,
+            chunk_s=CHUNK_S if chunk_s is None else chunk_s,
+        )
+        result.source = scratch  # the metrics and the figures read it block by block
+        result.info["log_file"] = name
+        m = metrics(result)
+        write_run(result, out, log=False, metrics=m)
+        write_figures(result, out)
+    return m
 
 
 def _size(n: float) -> str:
@@ -119,11 +158,12 @@ def cmd_run(args) -> int:
             s = s.with_overrides(duration_s=args.duration)
         except sc.ScenarioError as e:
             raise UserError(*[f"--duration {args.duration:g}: {m}" for m in e.messages]) from None
+    _require_format(args.format)
     out = Path(args.out) if args.out else Path("out") / s.name
     t0 = time.perf_counter()
-    m = _run_one(s, out, args.seed, not args.quiet)
+    m = _run_one(s, out, args.seed, not args.quiet, args.format)
     print(
-        f"{s.name}: wrote {out}/log.csv, run.json, plane.png, time.png "
+        f"{s.name}: wrote {out}/log.{args.format}, run.json, plane.png, time.png "
         f"({time.perf_counter() - t0:.2f} s wall)"
     )
     _print_metrics({s.name: m})
@@ -171,19 +211,21 @@ def cmd_demo(args) -> int:
             f"--only: no shipped scenario named {', '.join(map(repr, unknown))}; expected "
             f"names from `virtmech scenarios`: {', '.join(known)}"
         )
+    _require_format(args.format)
     out = _out_dir(args.out)
     names = args.only or known
     runs, entries = {}, []
     t0 = time.perf_counter()
     for name in names:
         s = sc.load(name)
-        m = _run_one(s, out / name, None, not args.quiet)
+        m = _run_one(s, out / name, None, not args.quiet, fmt=args.format)
         runs[name] = m
         entries.append(
             {
                 "name": name,
                 "description": " ".join(s.data["description"].split()),
                 "dir": name,
+                "log": f"log.{args.format}",
                 "metrics": m,
             }
         )
@@ -215,6 +257,12 @@ def _seed(text: str) -> int:
     return v
 
 
+FORMAT_HELP = (
+    "the log's file: csv (log.csv, default) or parquet (log.parquet; needs pyarrow: "
+    "pip install 'virtmech[parquet]')"
+)
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse's errors (usage, then the message; exit status 2) without the usage block:
     one line naming the flag, the value and what was expected, and where to read more."""
@@ -236,12 +284,14 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
     d.add_argument("--only", nargs="+", metavar="NAME", help="run only these scenarios")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
+    d.add_argument("--format", choices=LOG_FORMATS, default="csv", help=FORMAT_HELP)
     r = sub.add_parser("run", help="run one scenario (a TOML file or a shipped name)")
     r.add_argument("scenario", help="SCENARIO.toml or a name from `virtmech scenarios`")
     r.add_argument("--out", help="output folder (default: out/<name>)")
     r.add_argument("--seed", type=_seed, help="random seed, 0 to 2**63-1 (default: the scenario's)")
     r.add_argument("--duration", type=float, help="override duration_s [s]")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--format", choices=LOG_FORMATS, default="csv", help=FORMAT_HELP)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)

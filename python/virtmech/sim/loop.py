@@ -347,11 +347,25 @@ class SimResult:
     sim_time_s: float
     wall_time_s: float
     info: dict = field(default_factory=dict)
+    #: where the log is when it is not in `log` (a run with keep_log=False): a reader of
+    #: blocks such as virtmech.sim.logio.LogFile; `blocks` reads either, block by block
+    source: Any = None
+
+    def blocks(self, names, rows: int | None = None):
+        """The named columns of the log, a block of rows at a time (virtmech.sim.logio)."""
+        from .logio import blocks
+
+        return blocks(self, names, rows)
 
     def col(self, name: str) -> np.ndarray:
+        if self.source is not None:
+            return self.cols(name)[:, 0]
         return self.log[:, self.columns.index(name)]
 
     def cols(self, *names: str) -> np.ndarray:
+        if self.source is not None:  # the whole column(s), read from the source
+            parts = list(self.blocks(names))
+            return np.concatenate(parts) if parts else np.empty((0, len(names)))
         idx = [self.columns.index(n) for n in names]
         return self.log[:, idx]
 
@@ -361,6 +375,8 @@ class SimResult:
 
     @property
     def n_cycles(self) -> int:
+        if self.source is not None:
+            return int(self.source.rows)
         return int(self.log.shape[0])
 
 

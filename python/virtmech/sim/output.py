@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .logio import CsvLog, ParquetLog  # noqa: F401 (the sinks, here as before)
 from .loop import UNITS, SimResult
 
 WITHIN_M = 1e-3  # the "within 1 mm of the mechanism" threshold of the metrics
@@ -24,41 +25,21 @@ def _unit(col: str) -> str:
 
 #: about how many bytes a value takes in log.csv ('%.10g' and a comma), for size estimates
 CSV_BYTES_PER_VALUE = 16
-#: the size of log.csv above which the command line warns
+#: about how many bytes a value takes in log.parquet (float64, before compression)
+PARQUET_BYTES_PER_VALUE = 8
+#: the size of the log above which the command line warns
 LARGE_LOG_BYTES = 2**30
-
-
-class CsvLog:
-    """log.csv written block by block: a header of column names, then one row per control
-    cycle ('%.10g'). Use as the `sink` of virtmech.sim.run, then close() (or `with`); the
-    file is created with the first block."""
-
-    def __init__(self, path: str | Path):
-        self.path = Path(path)
-        self.f = None
-        self.rows = 0
-
-    def __call__(self, rows: np.ndarray, columns: list[str]) -> None:
-        if self.f is None:
-            self.f = open(self.path, "w", encoding="utf-8", newline="")  # noqa: SIM115
-            self.f.write(",".join(columns) + "\n")
-        np.savetxt(self.f, rows, delimiter=",", fmt="%.10g")
-        self.rows += len(rows)
-
-    def close(self) -> None:
-        if self.f is not None:
-            self.f.close()
-
-    def __enter__(self) -> CsvLog:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
 
 def estimate_csv_bytes(rows: int, columns: int) -> int:
     """About how large log.csv is for a log of rows x columns."""
     return rows * columns * CSV_BYTES_PER_VALUE
+
+
+def estimate_log_bytes(rows: int, columns: int, fmt: str = "csv") -> int:
+    """About how large the log is in `fmt` ("csv" or "parquet": at most, uncompressed)."""
+    per = PARQUET_BYTES_PER_VALUE if fmt == "parquet" else CSV_BYTES_PER_VALUE
+    return rows * columns * per
 
 
 def write_log_csv(result: SimResult, path: Path, block_rows: int = 10000) -> None:
@@ -88,7 +69,7 @@ def _jsonable(x):
     return x
 
 
-def run_json(result: SimResult) -> dict:
+def run_json(result: SimResult, metrics_: dict | None = None) -> dict:
     info = dict(result.info)
     mjcf = info.pop("mjcf", None)
     return _jsonable(
@@ -105,21 +86,25 @@ def run_json(result: SimResult) -> dict:
             "cycles": result.n_cycles,
             "columns": result.columns,
             "units": {c: _unit(c) for c in result.columns},
-            "metrics": metrics(result),
+            "metrics": metrics(result) if metrics_ is None else metrics_,
             **info,
             "mjcf": mjcf,
         }
     )
 
 
-def write_run(result: SimResult, out_dir: str | Path, log: bool = True) -> Path:
+def write_run(
+    result: SimResult, out_dir: str | Path, log: bool = True, metrics: dict | None = None
+) -> Path:
     """Writes log.csv (unless log=False: it was streamed there during the run, see CsvLog)
-    and run.json into out_dir (created); returns out_dir."""
+    and run.json into out_dir (created; `metrics`: the run's metrics if already computed);
+    returns out_dir."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if log:
         write_log_csv(result, out / "log.csv")
-    (out / "run.json").write_text(json.dumps(run_json(result), indent=2) + "\n", encoding="utf-8")
+    info = run_json(result, metrics)
+    (out / "run.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
     return out
 
 
@@ -164,9 +149,92 @@ METRICS: dict[str, tuple[str, str]] = {
 }
 
 
-def metrics(result: SimResult) -> dict:
+def metric_columns(n: int) -> list[str]:
+    """The log's columns `metrics` reads, for a device of n joints."""
+    return (
+        ["t", "dist", "dist_normal", "status"]
+        + ["fx", "fy", "fz", "mx", "my", "mz", "vx", "vy", "vz", "wx", "wy", "wz"]
+        + [f"tau{i}" for i in range(n)]
+        + [f"tau_motor{i}" for i in range(n)]
+    )
+
+
+class _MetricSums:
+    """What `metrics` needs of the log, accumulated block by block (`add`) so the log is
+    never read whole: every quantity is a max, a count or a sum of the block's own numpy
+    reduction, so a log of one block gives exactly what whole-column code gives."""
+
+    def __init__(self, n: int, act: np.ndarray, lim: np.ndarray, unilateral: bool):
+        self.n, self.act, self.lim, self.unilateral = n, act, lim, unilateral
+        self.rows = 0
+        self.t_first = math.nan  # first t with dist <= 1 mm
+        self.k0 = 0  # the row after the last with dist > 1 mm
+        self.t_k0 = math.nan  # t at row k0 (NaN until a row k0 is seen)
+        self.after_sq: list[float] = []  # per block: sum of dist**2 from row k0 on
+        self.after_max = -math.inf
+        self.d_max = -math.inf
+        self.dn_min = math.inf
+        self.f_max = -math.inf
+        self.f_sq: list[float] = []
+        self.passive = 0.0
+        self.frac = -math.inf
+        self.mfrac = -math.inf
+        self.work: list[float] = []
+        self.faults = 0
+
+    def add(self, B: np.ndarray) -> None:
+        n, act, lim = self.n, self.act, self.lim
+        rows = len(B)
+        if rows == 0:
+            return
+        t, d, dn, status = B[:, 0], B[:, 1], B[:, 2], B[:, 3]
+        F, W, V = B[:, 4:7], B[:, 4:10], B[:, 10:16]
+        tau, mot = B[:, 16 : 16 + n], B[:, 16 + n : 16 + 2 * n]
+        if math.isnan(self.t_first):
+            inside = np.flatnonzero(d <= WITHIN_M)
+            if inside.size:
+                self.t_first = float(t[inside[0]])
+        outside = np.flatnonzero(d > WITHIN_M)
+        if outside.size:  # what came before no longer counts as "after"
+            j = int(outside[-1]) + 1
+            self.k0 = self.rows + j
+            self.after_sq, self.after_max, self.t_k0 = [], -math.inf, math.nan
+        else:
+            j = 0
+        after = d[j:]
+        if after.size:
+            if math.isnan(self.t_k0):
+                self.t_k0 = float(t[j])
+            self.after_sq.append(float(np.sum(after**2)))
+            self.after_max = max(self.after_max, float(after.max()))
+        self.d_max = max(self.d_max, float(d.max()))
+        if self.unilateral:
+            self.dn_min = min(self.dn_min, float(np.min(dn)))
+        fmag = np.linalg.norm(F, axis=1)
+        self.f_max = max(self.f_max, float(fmag.max()))
+        self.f_sq.append(float(np.sum(fmag**2)))
+        passive = np.concatenate(
+            [np.abs(tau[:, ~act]).ravel(), np.abs(mot[:, ~act]).ravel(), [0.0]]
+        )
+        self.passive = max(self.passive, float(passive.max()))
+        self.frac = max(self.frac, float((np.abs(tau[:, act]) / lim[act]).max()))
+        self.mfrac = max(self.mfrac, float((np.abs(mot[:, act]) / lim[act]).max()))
+        self.work.append(float(np.sum(W * V)))
+        self.faults += int(np.count_nonzero(status.astype(np.int64) & 0xFF00))
+        self.rows += rows
+
+
+def _total(parts: list[float]) -> float:
+    """The sum of per-block sums (one block: that block's sum, unchanged)."""
+    return parts[0] if len(parts) == 1 else float(math.fsum(parts))
+
+
+def metrics(result: SimResult, block_rows: int | None = None) -> dict:
     """Per-run metrics (SI units), defined in `METRICS`. A metric that does not apply to
-    the run is NaN here (null in run.json and summary.json) and ``notes[name]`` says why."""
+    the run is NaN here (null in run.json and summary.json) and ``notes[name]`` says why.
+
+    The log is read block by block (`result.blocks`, `block_rows` rows at a time), only the
+    columns of `metric_columns`: memory stays one block however long the run."""
     from .loop import make_device
 
     r = result
@@ -177,42 +245,30 @@ def metrics(result: SimResult) -> dict:
     mech = r.info.get("mechanism") or r.scenario.data["mechanism"]
     point, target = _point_and_target(mech)
     notes: dict[str, str] = {}
-    t = r.t
-    d = r.col("dist")
-    outside = np.flatnonzero(d > WITHIN_M)
-    first_in = np.flatnonzero(d <= WITHIN_M)
-    if first_in.size:
-        t_first = float(t[first_in[0]])
-    else:
-        t_first = math.nan
+    acc = _MetricSums(n, act, lim, bool(mech.get("unilateral")))
+    for B in r.blocks(metric_columns(n), block_rows):
+        acc.add(B)
+    if acc.rows == 0:
+        raise ValueError("metrics: the log is empty (a run with keep_log=False and no source)")
+    t_first = acc.t_first
+    if math.isnan(t_first):
         notes["first_within_1mm_s"] = f"n/a: the {point} never came within 1 mm of {target}"
-    k0 = 0 if outside.size == 0 else int(outside[-1]) + 1
-    if k0 < len(d):
-        t1 = float(t[k0])
-        after = d[k0:]
-        rms_after, max_after = float(np.sqrt(np.mean(after**2))), float(after.max())
+    if acc.k0 < acc.rows:
+        t1 = acc.t_k0
+        rms_after = float(np.sqrt(_total(acc.after_sq) / (acc.rows - acc.k0)))
+        max_after = acc.after_max
     else:
         t1 = rms_after = max_after = math.nan
         why = f"n/a: the {point} did not end the run within 1 mm of {target}"
         for k in ("time_to_1mm_s", "dist_rms_after_m", "dist_max_after_m"):
             notes[k] = why
     if mech.get("unilateral"):
-        penetration = max(0.0, -float(np.min(r.col("dist_normal"))))
+        penetration = max(0.0, -acc.dn_min)
     else:
         penetration = math.nan
         notes["penetration_max_m"] = "n/a: a bilateral mechanism (no side to press into)"
-    F = r.cols("fx", "fy", "fz")
-    fmag = np.linalg.norm(F, axis=1)
-    tau = r.cols(*[f"tau{i}" for i in range(n)])
-    mot = r.cols(*[f"tau_motor{i}" for i in range(n)])
-    passive = np.concatenate([np.abs(tau[:, ~act]).ravel(), np.abs(mot[:, ~act]).ravel(), [0.0]])
-    frac = np.abs(tau[:, act]) / lim[act]
-    mfrac = np.abs(mot[:, act]) / lim[act]
     T = r.scenario.data["controller"]["period_s"]
-    W = r.cols("fx", "fy", "fz", "mx", "my", "mz")
-    V = r.cols("vx", "vy", "vz", "wx", "wy", "wz")
-    energy = float(T * np.sum(W * V))
-    status = r.col("status").astype(np.int64)
+    energy = float(T * _total(acc.work))
     rtf = r.sim_time_s / r.wall_time_s if r.wall_time_s > 0 else math.nan
     if not math.isfinite(rtf):
         notes["real_time_factor"] = "n/a: no wall-clock time was measured"
@@ -221,15 +277,15 @@ def metrics(result: SimResult) -> dict:
         "first_within_1mm_s": t_first,
         "dist_rms_after_m": rms_after,
         "dist_max_after_m": max_after,
-        "dist_max_m": float(d.max()),
+        "dist_max_m": acc.d_max,
         "penetration_max_m": penetration,
-        "force_max_n": float(fmag.max()),
-        "force_rms_n": float(np.sqrt(np.mean(fmag**2))),
-        "passive_torque_max": float(passive.max()),
-        "torque_fraction_max": float(frac.max()),
-        "motor_fraction_max": float(mfrac.max()),
+        "force_max_n": acc.f_max,
+        "force_rms_n": float(np.sqrt(_total(acc.f_sq) / acc.rows)),
+        "passive_torque_max": acc.passive,
+        "torque_fraction_max": acc.frac,
+        "motor_fraction_max": acc.mfrac,
         "energy_to_user_j": energy,
-        "faults": int(np.count_nonzero(status & 0xFF00)),
+        "faults": acc.faults,
         "sim_time_s": r.sim_time_s,
         "wall_time_s": r.wall_time_s,
         "real_time_factor": rtf,

@@ -165,18 +165,200 @@ VIEWS = {
 }
 
 
+# ---------------------------------------------------------------------------------------
+# long logs: read block by block, drawn from a bounded selection of rows
+
+#: a log longer than this many rows is drawn from a selection of about this many rows per
+#: figure: in every one of equal bins of cycles, the cycles where each plotted quantity is
+#: smallest and largest (a min/max envelope, so peaks are kept), plus the snapshots
+MAX_POINTS = 20000
+
+#: the log's columns the figures read
+FIGURE_COLUMNS = (
+    ["t", "px", "py", "pz", "sx", "sy", "sz", "fx", "fy", "fz"]
+    + ["ff1x", "ff1y", "ff1z", "ff2x", "ff2y", "ff2z", "fhx", "fhy", "fhz"]
+    + ["dist", "dist_normal", "dist_across", "arm_pos_angle", "arm_stylus_angle"]
+    + ["theta0", "theta_star0"]
+)
+#: columns the selection adds: the cumulative activity (_snapshot_indices) and the
+#: PlanarArm's angles unwrapped over the whole run
+EXTRA_COLUMNS = ["_activity", "_arm_pos_unwrapped", "_arm_stylus_unwrapped"]
+
+
+class _Selection:
+    """Rows of a run's log (the columns FIGURE_COLUMNS + EXTRA_COLUMNS), with the run's
+    scenario and info: what the figures draw, in place of the whole log."""
+
+    def __init__(self, result, rows: np.ndarray, decimated: bool):
+        self.scenario, self.info = result.scenario, result.info
+        self.columns = FIGURE_COLUMNS + EXTRA_COLUMNS
+        self.log, self.decimated = rows, decimated
+
+    def col(self, name: str) -> np.ndarray:
+        return self.log[:, self.columns.index(name)]
+
+    def cols(self, *names: str) -> np.ndarray:
+        return self.log[:, [self.columns.index(n) for n in names]]
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.col("t")
+
+    @property
+    def n_cycles(self) -> int:
+        return int(self.log.shape[0])
+
+
+def _quantities(result, kind: str):
+    """The plotted quantities of figure `kind` ("plane" or "time") as functions of a
+    block of rows (a _Selection-like view), one value per row."""
+    mech = _mechanism(result)
+    L = _length(mech)
+    resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
+
+    def F(b):
+        return b.cols("fx", "fy", "fz")
+
+    def fmag(b):
+        return np.linalg.norm(F(b), axis=1)
+
+    q = [fmag]
+    if kind == "plane":
+        for c in "xyz":
+            q.append(lambda b, c=c: b.col("p" + c))  # the handle's position
+            q.append(lambda b, c=c: b.col("p" + c) + L * b.col("s" + c))  # the tip's
+        return q
+    q += [
+        lambda b: np.linalg.norm(b.cols("fhx", "fhy", "fhz"), axis=1),
+        lambda b: b.col("dist"),
+    ]
+    if mech["type"] == "PlanarArm":
+        n = np.asarray(mech["normal"], dtype=float)
+        n /= np.linalg.norm(n)
+
+        def tangent(b):
+            w = b.cols("px", "py", "pz") - np.asarray(mech["pivot"])
+            w = w - np.outer(w @ n, n)
+            return np.cross(n, w / np.linalg.norm(w, axis=1)[:, None])
+
+        def along(b):
+            return np.sum(F(b) * tangent(b), axis=1)
+
+        def across(b):
+            tan = tangent(b)
+            return np.linalg.norm(F(b) - np.sum(F(b) * tan, axis=1)[:, None] * tan, axis=1)
+
+        q += [along, across]
+        q += [lambda b, c=c: b.col(c) for c in EXTRA_COLUMNS[1:] + ["theta0", "theta_star0"]]
+    else:
+        key = "plane_normal" if "plane_normal" in mech else "normal"
+        nn = np.asarray(mech.get(key, [0.0, 0.0, 1.0]), dtype=float)
+        nn /= np.linalg.norm(nn)
+        q += [
+            lambda b: b.col("dist_normal"),
+            lambda b: b.col("dist_across"),
+            lambda b: F(b) @ nn,
+        ]
+    if resist:
+        normal = np.asarray(mech.get("normal", mech.get("plane_normal", [0.0, 0.0, 1.0])))
+
+        def across_stylus(b, cols):
+            a = np.cross(normal.astype(float), b.cols("sx", "sy", "sz"))
+            return np.sum(b.cols(*cols) * a, axis=1)
+
+        for cols in (("ff1x", "ff1y", "ff1z"), ("ff2x", "ff2y", "ff2z"), ("fx", "fy", "fz")):
+            q.append(lambda b, cols=cols: across_stylus(b, cols))
+    return q
+
+
+class _Rows:
+    """A block of rows with named columns (what _quantities' functions read)."""
+
+    def __init__(self, data: np.ndarray, columns: list[str]):
+        self.data, self.c = data, {n: i for i, n in enumerate(columns)}
+
+    def col(self, name: str) -> np.ndarray:
+        return self.data[:, self.c[name]]
+
+    def cols(self, *names: str) -> np.ndarray:
+        return self.data[:, [self.c[n] for n in names]]
+
+
+def select_rows(
+    result, kind: str, max_points: int = MAX_POINTS, block_rows: int | None = None
+) -> _Selection:
+    """The rows figure `kind` draws, read block by block (result.blocks): every row if the
+    log has at most `max_points`, else, in each of max_points / (2 x quantities) equal
+    bins of cycles, the rows where each quantity of the figure (_quantities) is smallest
+    and largest. Memory: one block, the selection and less than one bin of rows."""
+    mech = _mechanism(result)
+    L = _length(mech)
+    N = result.n_cycles
+    columns = FIGURE_COLUMNS + EXTRA_COLUMNS
+    c = {n: i for i, n in enumerate(FIGURE_COLUMNS)}
+    qf = _quantities(result, kind)
+    bins = max(1, max_points // (2 * len(qf) + 1))
+    size = 1 if N <= max_points else -(-N // bins)  # rows per bin
+    kept: list[np.ndarray] = []
+    carry = carry_q = None
+    prev = None  # the previous block's last row
+    act_last = 0.0
+    unwrapped_last = np.zeros(2)
+    for B in result.blocks(FIGURE_COLUMNS, block_rows):
+        if len(B) == 0:
+            continue
+        P, S = B[:, c["px"] : c["px"] + 3], B[:, c["sx"] : c["sx"] + 3]
+        ang = B[:, [c["arm_pos_angle"], c["arm_stylus_angle"]]]
+        if prev is not None:  # continue the activity and the unwrapping across blocks
+            P = np.vstack([prev[[c["px"], c["py"], c["pz"]]], P])
+            S = np.vstack([prev[[c["sx"], c["sy"], c["sz"]]], S])
+        step = np.linalg.norm(np.diff(P, axis=0), axis=1) + L * np.linalg.norm(
+            np.diff(S, axis=0), axis=1
+        )
+        act = np.cumsum(np.concatenate([[act_last], step]))
+        act = act[1:] if prev is not None else act
+        if prev is None:
+            unw = np.unwrap(ang, axis=0)
+        else:
+            raw = prev[[c["arm_pos_angle"], c["arm_stylus_angle"]]]
+            unw = np.unwrap(np.vstack([raw, ang]), axis=0)[1:] + (unwrapped_last - raw)
+        ext = np.column_stack([B, act, unw])
+        prev, act_last, unwrapped_last = B[-1].copy(), float(act[-1]), unw[-1].copy()
+        if size == 1:
+            kept.append(ext)
+            continue
+        rows = _Rows(ext, columns)
+        Q = np.column_stack([f(rows) for f in qf])
+        if carry is not None:
+            ext, Q = np.vstack([carry, ext]), np.vstack([carry_q, Q])
+        m = len(ext) // size
+        if m:
+            kept.append(ext[_extremes(Q[: m * size], size)])
+        carry, carry_q = ext[m * size :], Q[m * size :]
+    if carry is not None and len(carry):
+        kept.append(carry[_extremes(carry_q, len(carry))])
+    rows = np.concatenate(kept) if kept else np.empty((0, len(columns)))
+    return _Selection(result, rows, decimated=size > 1)
+
+
+def _extremes(Q: np.ndarray, size: int) -> np.ndarray:
+    """Row indices (sorted, unique) of the smallest and largest value of every column of
+    Q within each bin of `size` consecutive rows (len(Q) a multiple of size)."""
+    m = len(Q) // size
+    R = Q.reshape(m, size, Q.shape[1])
+    base = (np.arange(m) * size)[:, None]
+    lo = np.argmin(np.where(np.isnan(R), np.inf, R), axis=1) + base
+    hi = np.argmax(np.where(np.isnan(R), -np.inf, R), axis=1) + base
+    # and each bin's first row, so that the time axis is covered evenly
+    return np.unique(np.concatenate([lo.ravel(), hi.ravel(), base[:, 0]]))
+
+
 def _snapshot_indices(result, count: int = 6) -> np.ndarray:
     """Cycles to draw: evenly spaced in "activity" (handle travel plus stylus turning, times
     the probe length), so that fast phases get as many snapshots as slow ones; plus the
     first and last cycles and the cycle of the largest force."""
     n = result.n_cycles
-    P = result.cols("px", "py", "pz")
-    S = result.cols("sx", "sy", "sz")
-    L = _length(_mechanism(result))
-    step = np.linalg.norm(np.diff(P, axis=0), axis=1) + L * np.linalg.norm(
-        np.diff(S, axis=0), axis=1
-    )
-    act = np.concatenate([[0.0], np.cumsum(step)])
+    act = result.col("_activity")  # cumulative over every cycle of the run (select_rows)
     idx = {0, n - 1}
     if act[-1] > 1e-6:
         for a in np.linspace(0, act[-1], count)[1:-1]:
@@ -208,16 +390,25 @@ def _no_overlap(fig, texts: list) -> list:
     return [tuple(float(x) for x in k.extents) for k in kept]
 
 
-def plane_figure(result, path: str | Path, force_scale: float = FORCE_SCALE_M_PER_N) -> dict:
+def plane_figure(
+    result,
+    path: str | Path,
+    force_scale: float = FORCE_SCALE_M_PER_N,
+    max_points: int = MAX_POINTS,
+    block_rows: int | None = None,
+) -> dict:
     """The handle seen where the mechanism is clearest (VIEWS: a PlanarArm's circle
     face-on, a Probe's plane edge-on, a PointPivot from the side, a LineGuide across): its
     path, the handle as a thick line at moments of the run with the virtual probe to its tip,
     the device's force as arrows (`force_scale` m per N, the same in every figure); on runs
     where the user resists, the two finger forces. Returns what it drew:
-    {"title", "force_scale_m_per_n", "time_labels": kept labels' window extents}."""
+    {"title", "force_scale_m_per_n", "time_labels": kept labels' window extents, "rows":
+    how many of the log's rows it drew}. The log is read block by block: a log of more than
+    `max_points` rows is drawn from the rows select_rows picks."""
     plt = _plt()
     from matplotlib.colors import Normalize
 
+    result = select_rows(result, "plane", max_points, block_rows)
     mech = _mechanism(result)
     L = _length(mech)
     P = result.cols("px", "py", "pz")
@@ -354,7 +545,12 @@ def plane_figure(result, path: str | Path, force_scale: float = FORCE_SCALE_M_PE
     kept = _no_overlap(fig, texts)
     fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
-    return {"title": title, "force_scale_m_per_n": scale, "time_labels": kept}
+    return {
+        "title": title,
+        "force_scale_m_per_n": scale,
+        "time_labels": kept,
+        "rows": result.n_cycles,
+    }
 
 
 # ---------------------------------------------------------------------------------------
@@ -405,8 +601,9 @@ def _panel_distance_log(ax, result, mech, t, F) -> None:
 
 
 def _panel_angles(ax, result, mech, t, F) -> None:
-    ax.plot(t, np.degrees(np.unwrap(result.col("arm_pos_angle"))), label="handle position")
-    sty = np.degrees(np.unwrap(result.col("arm_stylus_angle")))
+    # unwrapped over the whole run (select_rows)
+    ax.plot(t, np.degrees(result.col("_arm_pos_unwrapped")), label="handle position")
+    sty = np.degrees(result.col("_arm_stylus_unwrapped"))
     ax.plot(t, sty, lw=3.5, alpha=0.45, label="handle (stylus) angle")
     ax.plot(t, np.degrees(result.col("theta_star0")), ls="--", label="mechanism θ* (eq. 25)")
     ax.plot(t, np.degrees(result.col("theta0")), ls=":", label="mechanism θ (nearest)")
@@ -481,14 +678,20 @@ PANELS = {
 }
 
 
-def time_figure(result, path: str | Path) -> dict:
+def time_figure(
+    result, path: str | Path, max_points: int = MAX_POINTS, block_rows: int | None = None
+) -> dict:
     """Force over time (for a PlanarArm also along and across the path), then the panels
     of PANELS for the mechanism (a PlanarArm: distance from the circle and angles on it; a
     Probe: the tip's height above its plane and the force along the normal against Kp times
     the depth; a PointPivot or LineGuide: the tip's distance and height), and, where the user
-    resists, the finger forces across the stylus. Returns {"panels": the y labels}."""
+    resists, the finger forces across the stylus. Returns {"panels": the y labels, "rows":
+    how many of the log's rows it drew}. The log is read block by block: a log of more than
+    `max_points` rows is drawn from the rows select_rows picks (each curve's smallest and
+    largest value in every bin of cycles)."""
     plt = _plt()
     mech = _mechanism(result)
+    result = select_rows(result, "time", max_points, block_rows)
     t = result.t
     F = result.cols("fx", "fy", "fz")
     resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
@@ -505,17 +708,22 @@ def time_figure(result, path: str | Path) -> dict:
     fig.suptitle(f"{result.scenario.name}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
-    out = {"panels": [ax.get_ylabel() for ax in axes]}
+    out = {"panels": [ax.get_ylabel() for ax in axes], "rows": result.n_cycles}
     plt.close(fig)
     return out
 
 
 def write_figures(
-    result, out_dir: str | Path, force_scale: float = FORCE_SCALE_M_PER_N
+    result,
+    out_dir: str | Path,
+    force_scale: float = FORCE_SCALE_M_PER_N,
+    max_points: int = MAX_POINTS,
+    block_rows: int | None = None,
 ) -> list[Path]:
-    """plane.png and time.png of a run in out_dir (created); one force scale for all."""
+    """plane.png and time.png of a run in out_dir (created); one force scale for all. The
+    log is read block by block (`block_rows` at a time; see plane_figure, time_figure)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    plane_figure(result, out / "plane.png", force_scale)
-    time_figure(result, out / "time.png")
+    plane_figure(result, out / "plane.png", force_scale, max_points, block_rows)
+    time_figure(result, out / "time.png", max_points, block_rows)
     return [out / "plane.png", out / "time.png"]

@@ -115,10 +115,11 @@ def write_index(out_dir: str | Path, entries: list[dict], title: str = "virtmech
     sections = []
     for e in entries:
         d = html.escape(e["dir"])
+        log = html.escape(e.get("log", "log.csv"))
         sections.append(
             f'<section id="{html.escape(e["name"])}"><h2>{html.escape(e["name"])}</h2>'
             f"<p>{html.escape(e['description'])}</p>"
-            f'<p><a href="{d}/log.csv">log.csv</a> · <a href="{d}/run.json">run.json</a></p>'
+            f'<p><a href="{d}/{log}">{log}</a> · <a href="{d}/run.json">run.json</a></p>'
             f'<div class="figs"><img src="{d}/plane.png" alt="{d} plane">'
             f'<img src="{d}/time.png" alt="{d} time"></div>'
             "</section>"
