@@ -399,3 +399,18 @@ def test_parquet_log_holds_the_csv_log(tmp_path):
     header = (tmp_path / "csv" / "log.csv").read_text().splitlines()[0].split(",")
     assert table.column_names == header and a.shape == b.shape == (301, len(header))
     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)  # the CSV keeps 10 digits
+
+
+def test_the_simulations_wall_time_leaves_out_writing_the_log():
+    """The real-time factor is the simulation's: a slow sink (writing the log) is timed
+    apart, in sink_time_s."""
+    import time
+
+    from virtmech import sim
+
+    s = sc.load("planar3r-fig9").with_overrides(duration_s=0.2)
+    t0 = time.perf_counter()
+    r = sim.run(s, sink=lambda rows, cols: time.sleep(0.1), chunk_s=0.1)  # 3 blocks
+    total = time.perf_counter() - t0
+    assert r.sink_time_s >= 0.3
+    assert r.wall_time_s + r.sink_time_s <= total

@@ -345,11 +345,15 @@ class SimResult:
     columns: list[str]
     log: np.ndarray
     sim_time_s: float
+    #: wall time of the simulation (the loop, the hand's plan, the derived columns), not
+    #: counting the sink's (writing the log: `sink_time_s`)
     wall_time_s: float
     info: dict = field(default_factory=dict)
     #: where the log is when it is not in `log` (a run with keep_log=False): a reader of
     #: blocks such as virtmech.sim.logio.LogFile; `blocks` reads either, block by block
     source: Any = None
+    #: wall time spent in the sink (writing the log as it goes)
+    sink_time_s: float = 0.0
 
     def blocks(self, names, rows: int | None = None):
         """The named columns of the log, a block of rows at a time (virtmech.sim.logio)."""
@@ -647,6 +651,7 @@ def run(
         set(intent.start_cycles(N)) | set(range(0, N, 1000)) | set(range(0, N, block)) | {N}
     )
     wall0 = time.perf_counter()
+    sink_wall = 0.0  # the sink's time (writing the log): not the simulation's
     b0 = 0  # first cycle of the current block
     for k0, k1 in zip(cuts[:-1], cuts[1:]):
         T_h0 = device.forward(Cinv @ (data.qpos - c0))
@@ -669,10 +674,12 @@ def run(
             if log is not None:
                 log[b0:k1] = rows_done
             if sink is not None:
+                t_sink = time.perf_counter()
                 sink(rows_done, columns)
+                sink_wall += time.perf_counter() - t_sink
             b0 = k1
         bar.update(k1 * T_ctrl)
-    wall = time.perf_counter() - wall0
+    wall = time.perf_counter() - wall0 - sink_wall
     bar.close(wall)
 
     info = {
@@ -704,6 +711,7 @@ def run(
         log=log if log is not None else np.empty((0, len(columns))),
         sim_time_s=(N - 1) * T_ctrl,
         wall_time_s=wall,
+        sink_time_s=sink_wall,
         info=info,
     )
 

@@ -145,7 +145,10 @@ METRICS: dict[str, tuple[str, str]] = {
     "faults": ("1", "cycles whose status has a fault bit (0xFF00)"),
     "sim_time_s": ("s", "simulated time"),
     "wall_time_s": ("s", "wall-clock time of the simulation loop"),
-    "real_time_factor": ("1", "sim_time_s / wall_time_s"),
+    "real_time_factor": (
+        "1",
+        "sim_time_s / wall_time_s (the simulation's wall time, not counting writing the log)",
+    ),
 }
 
 
