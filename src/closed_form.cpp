@@ -324,6 +324,23 @@ Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& va
 
 namespace {
 
+// Newton on the sphere from each of `count` starts: the end of lowest cost, or `fallback`
+// where none is below its cost
+Eigen::Vector3d lowest_descent(const StylusCost& f, const Eigen::Vector3d* starts, int count,
+                               const Eigen::Vector3d& fallback) noexcept {
+  Eigen::Vector3d best = fallback;
+  double best_value = f.value(fallback);
+  for (int i = 0; i < count; ++i) {
+    double value;
+    const Eigen::Vector3d u = sphere_newton(f, starts[i], value);
+    if (value < best_value) {
+      best_value = value;
+      best = u;
+    }
+  }
+  return best;
+}
+
 // Newton on the sphere for a tip held to a line (f.set.free), from u_R, u_start, u_extra,
 // the stylus normal to the line and the directions that put the tip on it; the best end
 Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
@@ -353,17 +370,7 @@ Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
     add(w - (we - std::sqrt(disc)) * e);
     add(w - (we + std::sqrt(disc)) * e);
   }
-  Eigen::Vector3d best = f.u_R;
-  double best_value = f.value(f.u_R);
-  for (int i = 0; i < count; ++i) {
-    double value;
-    const Eigen::Vector3d u = sphere_newton(f, starts[i], value);
-    if (value < best_value) {
-      best_value = value;
-      best = u;
-    }
-  }
-  return best;
+  return lowest_descent(f, starts, count, f.u_R);
 }
 
 }  // namespace
@@ -446,17 +453,7 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
       if (disc >= 0.0 && lambda0 + tau >= 0.0) starts[count++] = (v - (lambda0 + tau) * o) / length;
     }
   }
-  Eigen::Vector3d best = starts[0];
-  double best_value = f.value(best);
-  for (int i = 0; i < count; ++i) {
-    double value;
-    const Eigen::Vector3d u = sphere_newton(f, starts[i], value);
-    if (value < best_value) {
-      best_value = value;
-      best = u;
-    }
-  }
-  return best;
+  return lowest_descent(f, starts, count, starts[0]);
 }
 
 namespace {
