@@ -285,12 +285,14 @@ class _Rows:
 
 
 def select_rows(
-    result, kind: str, max_points: int = MAX_POINTS, block_rows: int | None = None
+    result, kind: str, max_points: int | None = None, block_rows: int | None = None
 ) -> _Selection:
     """The rows figure `kind` draws, read block by block (result.blocks): every row if the
     log has at most `max_points`, else, in each of max_points / (2 x quantities) equal
     bins of cycles, the rows where each quantity of the figure (_quantities) is smallest
-    and largest. Memory: one block, the selection and less than one bin of rows."""
+    and largest (max_points: default MAX_POINTS). Memory: one block, the selection and
+    less than one bin of rows."""
+    max_points = MAX_POINTS if max_points is None else int(max_points)
     mech = _mechanism(result)
     L = _length(mech)
     N = result.n_cycles
@@ -394,7 +396,7 @@ def plane_figure(
     result,
     path: str | Path,
     force_scale: float = FORCE_SCALE_M_PER_N,
-    max_points: int = MAX_POINTS,
+    max_points: int | None = None,
     block_rows: int | None = None,
 ) -> dict:
     """The handle seen where the mechanism is clearest (VIEWS: a PlanarArm's circle
@@ -679,7 +681,7 @@ PANELS = {
 
 
 def time_figure(
-    result, path: str | Path, max_points: int = MAX_POINTS, block_rows: int | None = None
+    result, path: str | Path, max_points: int | None = None, block_rows: int | None = None
 ) -> dict:
     """Force over time (for a PlanarArm also along and across the path), then the panels
     of PANELS for the mechanism (a PlanarArm: distance from the circle and angles on it; a
@@ -717,7 +719,7 @@ def write_figures(
     result,
     out_dir: str | Path,
     force_scale: float = FORCE_SCALE_M_PER_N,
-    max_points: int = MAX_POINTS,
+    max_points: int | None = None,
     block_rows: int | None = None,
 ) -> list[Path]:
     """plane.png and time.png of a run in out_dir (created); one force scale for all. The
