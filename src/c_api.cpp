@@ -19,6 +19,7 @@ static_assert(VM_STATUS_FORCE_CLAMPED == status::kForceClamped);
 static_assert(VM_STATUS_TORQUE_CLAMPED == status::kTorqueClamped);
 static_assert(VM_STATUS_NOT_CONVERGED == status::kNotConverged);
 static_assert(VM_STATUS_WATCHDOG == status::kWatchdog);
+static_assert(VM_STATUS_PASSIVITY == status::kPassivity);
 static_assert(VM_STATUS_FAULT_NONFINITE_INPUT == status::kFaultNonFiniteInput);
 static_assert(VM_STATUS_FAULT_NONFINITE_OUTPUT == status::kFaultNonFiniteOutput);
 static_assert(VM_STATUS_FAULT_BAD_SIZE == status::kFaultBadSize);
@@ -214,6 +215,12 @@ ControllerSettings settings_from(const vm_settings& s) {
   c.secondary_weight = s.secondary_weight;
   c.range_margin_rad = s.range_margin_rad;
   c.range_margin_m = s.range_margin_m;
+  if (s.passivity < 0 || s.passivity > 1) {
+    throw std::invalid_argument("settings.passivity: expected 0 (off) or 1 (observer and "
+                                "controller), got " + std::to_string(s.passivity));
+  }
+  c.passivity = static_cast<Passivity>(s.passivity);
+  c.passivity_max_energy_j = s.passivity_max_energy_j;
   return c;
 }
 
@@ -320,6 +327,8 @@ void vm_settings_init(vm_settings* s) {
   s->secondary_weight = d.secondary_weight;
   s->range_margin_rad = d.range_margin_rad;
   s->range_margin_m = d.range_margin_m;
+  s->passivity = static_cast<int>(d.passivity);
+  s->passivity_max_energy_j = d.passivity_max_energy_j;
 }
 
 int vm_controller_create(const vm_device_desc* device, const vm_mechanism_desc* mechanism,
@@ -403,6 +412,8 @@ void vm_controller_diagnostics(const vm_controller* c, vm_diagnostics* d) {
   d->active_star = o.active_star;
   d->ramp = o.ramp;
   d->limit_scale = o.limit_scale;
+  d->energy = o.energy;
+  copy_vec(o.wrench_passivity, d->wrench_passivity, 6);
   d->status = o.status;
   d->computation_time_us = o.computation_time_us;
 }

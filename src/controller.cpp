@@ -156,6 +156,17 @@ ControllerModel make_controller_model(const Device& device, const Mechanism& mec
   require_non_negative("range_margin_rad", s.range_margin_rad);
   require_non_negative("range_margin_m", s.range_margin_m);
   const int n = device.dof();
+  if (s.passivity != Passivity::kOff && s.passivity != Passivity::kObserverController) {
+    throw std::invalid_argument("passivity: expected off or observer_controller");
+  }
+  if (!(s.passivity_max_energy_j >= 0.0)) {
+    std::ostringstream os;
+    os << "passivity_max_energy_j: expected >= 0 [J] (inf: no cap), got " << s.passivity_max_energy_j;
+    throw std::invalid_argument(os.str());
+  }
+  m.passivity = s.passivity;
+  m.passivity_max_energy = s.passivity_max_energy_j;
+  m.passivity_metric = mask.cwiseProduct(unit);
   m.q_min.resize(n);
   m.q_max.resize(n);
   for (int i = 0; i < n; ++i) {
@@ -175,6 +186,8 @@ namespace {
 void fault(const Device& dev, ControllerData& d, std::uint32_t bits, CycleOutput& out) noexcept {
   out.status |= bits;
   out.torque.setZero(dev.dof());
+  d.energy = 0.0;  // the observer starts afresh with the ramp-in
+  d.have_last_torque = false;
   out.wrench.setZero();
   out.ramp = 0.0;
   out.limit_scale = 1.0;
@@ -182,7 +195,7 @@ void fault(const Device& dev, ControllerData& d, std::uint32_t bits, CycleOutput
   d.first = true;
 }
 
-// q and dq finite, q inside the device's range widened by the margin (docs/theory.md, 8).
+// q and dq finite, q inside the device's range widened by the margin (docs/theory.md, 9).
 std::uint32_t check_input(const ControllerModel& M, const Device& dev, const double* q,
                           const double* dq) noexcept {
   const int n = dev.dof();
@@ -386,6 +399,45 @@ void keep_renderable(const ControllerModel& M, const Device& dev, ControllerData
   f -= out.wrench_unrendered;
 }
 
+// Passivity observer: the motors' exact work over the cycle just ended, the torque held
+// (zero-order) times the displacement, taken from the energy the rendering holds (capped).
+// Passivity controller: where the coming cycle's work, predicted as T f . v_R, would exceed
+// that energy, the least damping -alpha U v_R on the renderable axes that prevents it
+// (Hannaford & Ryu 2002; docs/theory.md, "Passivity"). Safety only scales f by (0, 1]
+// afterwards, which keeps a prediction within the energy within it.
+void passivity(const ControllerModel& M, const Device& dev, ControllerData& d, const double* q,
+               Vector6& f, CycleOutput& out) noexcept {
+  out.wrench_passivity.setZero();
+  out.passivity_damping = 0.0;
+  if (M.passivity == Passivity::kOff) {
+    out.energy = 0.0;
+    return;
+  }
+  if (d.have_last_torque) {
+    double work = 0.0;
+    for (int i = 0; i < dev.dof(); ++i) work += d.last_torque[i] * (q[i] - d.last_q[i]);
+    d.energy -= work;
+  }
+  d.energy = std::min(d.energy, M.passivity_max_energy);
+  out.energy = d.energy;
+  // A deficit (the last cycles' work beyond their prediction) is not paid back by damping
+  // the handle where the law commands no power, in free space say: the controller at most
+  // removes f's power, so its wrench is never larger than f (in the U norm) and never
+  // reverses f's power. The deficit stays in the observer and holds back later work.
+  const double budget = std::max(d.energy, 0.0);
+  const double predicted = M.period_s * f.dot(d.v_R);
+  // (a picojoule a cycle is left to the observer: rounding-level forces do not set the bit)
+  if (predicted <= budget + 1e-12) return;
+  const Vector6 mv = M.passivity_metric.cwiseProduct(d.v_R);
+  const double per_alpha = M.period_s * mv.dot(d.v_R);  // the work -alpha U v_R removes per alpha
+  if (!(per_alpha > 1e-300)) return;  // no renderable motion: no work either way
+  const double alpha = (predicted - budget) / per_alpha;
+  out.passivity_damping = alpha;
+  out.wrench_passivity = -alpha * mv;
+  f += out.wrench_passivity;
+  out.status |= status::kPassivity;
+}
+
 // Force and moment limits keeping direction, ramp-in, tau = J_R^T f with passive joints at
 // exactly 0 (eq. 8), joint torque limits.
 void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vector6& f,
@@ -443,6 +495,9 @@ void begin(int n, CycleOutput& out) noexcept {
   out.active = out.active_star = 0;
   out.ramp = 0.0;
   out.limit_scale = 1.0;
+  out.energy = 0.0;
+  out.wrench_passivity.setZero();
+  out.passivity_damping = 0.0;
   out.computation_time_us = 0.0;
 }
 
@@ -466,6 +521,8 @@ void Controller::reset() noexcept {
   data_.unpowered.theta = mechanism_->home();
   data_.first = true;
   data_.ramp_count = 0;
+  data_.energy = 0.0;
+  data_.have_last_torque = false;
   data_.last_t = std::numeric_limits<double>::quiet_NaN();
 }
 
@@ -528,7 +585,13 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   Vector6 f = out.wrench_null + out.wrench_range;
 
   keep_renderable(M, dev, d, f, out);
+  passivity(M, dev, d, q, f, out);
   safety(M, dev, d, f, out);
+  if (M.passivity != Passivity::kOff) {
+    d.last_q = Eigen::Map<const JointVector>(q, dev.dof());
+    d.last_torque = out.torque;
+    d.have_last_torque = true;
+  }
 
   // outputs
   const Placement& pn = d.nearest;

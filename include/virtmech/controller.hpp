@@ -6,7 +6,7 @@
 // all state the cycle updates (both placements, the ramp counter), allocated once. The
 // cycle is a straight line of named stages over the two (src/controller.cpp):
 //   check_input -> device_kinematics -> place (nearest, un-powered) -> wrench (eq. 26)
-//   -> keep_renderable -> safety -> outputs
+//   -> keep_renderable -> passivity -> safety -> outputs
 #pragma once
 
 #include <cstdint>
@@ -37,6 +37,16 @@ enum class ErrorVelocity : int {
   kHandle = 1,
 };
 
+/// Whether the cycle keeps the rendering passive (docs/theory.md, "Passivity").
+enum class Passivity : int {
+  kOff = 0,  //!< the laws as written: the motors may do net work (the paper's Fig. 11)
+  /// Time-domain passivity observer and controller (Hannaford & Ryu 2002) at the motors'
+  /// port: the observer sums the motors' exact work over each held cycle, -tau . dq; where
+  /// the coming cycle's work would exceed what the rendering has absorbed, the controller
+  /// adds the least damping on the handle's renderable velocity that prevents it. Default.
+  kObserverController = 1,
+};
+
 /// Status bits of a cycle. Bits below kFaultMask inform; a fault bit means zero torque.
 namespace status {
 constexpr std::uint32_t kOk = 0;
@@ -45,6 +55,7 @@ constexpr std::uint32_t kForceClamped = 1u << 1;    //!< wrench scaled to the fo
 constexpr std::uint32_t kTorqueClamped = 1u << 2;   //!< torques scaled to the joint limits
 constexpr std::uint32_t kNotConverged = 1u << 3;    //!< a placement hit its iteration cap
 constexpr std::uint32_t kWatchdog = 1u << 4;        //!< cycle gap exceeded the watchdog
+constexpr std::uint32_t kPassivity = 1u << 5;       //!< the passivity controller damped
 constexpr std::uint32_t kFaultNonFiniteInput = 1u << 8;   //!< q or dq not finite
 constexpr std::uint32_t kFaultNonFiniteOutput = 1u << 9;  //!< computation produced NaN/inf
 constexpr std::uint32_t kFaultBadSize = 1u << 10;         //!< q or dq of the wrong length
@@ -77,6 +88,10 @@ struct ControllerSettings {
   /// (fault_out_of_range): revolute joints [rad], prismatic joints [m].
   double range_margin_rad = 5.0 * 3.14159265358979323846 / 180.0;
   double range_margin_m = 0.005;
+  Passivity passivity = Passivity::kObserverController;
+  /// The most energy the passivity observer banks [J]: what the rendering absorbed beyond
+  /// it (damping, a user pushing) is not returned later. inf: no cap.
+  double passivity_max_energy_j = 0.01;
 };
 
 /// The validated configuration with every default resolved.
@@ -100,6 +115,11 @@ struct ControllerModel {
   TrackOptions track, track_initial;
   std::array<bool, 6> renderable{};  //!< task axes the passive joints never move
   JointVector q_min, q_max;          //!< plausible q: the device's range widened by the margin
+  Passivity passivity = Passivity::kObserverController;
+  double passivity_max_energy = 0.01;  //!< [J]
+  /// The metric of the passivity controller's damping: U on the renderable task axes, 0 on
+  /// the rest (damping there would load the passive joints)
+  Vector6 passivity_metric = Vector6::Zero();
 };
 
 /// Everything one cycle reports. Fixed-capacity members: copying never allocates.
@@ -122,6 +142,14 @@ struct CycleOutput {
   std::uint32_t active = 0, active_star = 0;
   double ramp = 0.0;              //!< ramp-in factor applied [0, 1]
   double limit_scale = 1.0;       //!< factor applied by force and torque limits (0, 1]
+  /// Passivity observer: the energy the rendering has absorbed and not returned, after the
+  /// cap, at this cycle's start [J] (the motors' work since the start is its negative, up to
+  /// the cap); 0 with passivity off
+  double energy = 0.0;
+  /// Passivity controller: the damping wrench it added, -alpha U v_R on the renderable axes,
+  /// before safety (zero when it did not act)
+  Vector6 wrench_passivity = Vector6::Zero();
+  double passivity_damping = 0.0;  //!< its alpha [N·s/m; rotational axes N·m·s/rad / L^2]
   std::uint32_t status = status::kOk;
   double computation_time_us = 0.0;  //!< this cycle's own computation time [µs]
 };
@@ -156,6 +184,10 @@ struct ControllerData {
   WeightedProjector projector;    //!< P(W_A) at the un-powered placement; the renderable part
   bool first = true;            //!< next cycle starts placements afresh
   long ramp_count = 0;
+  // passivity observer: its energy [J], and the torque and q of the last good cycle
+  double energy = 0.0;
+  bool have_last_torque = false;
+  JointVector last_q, last_torque;
   double last_t = std::numeric_limits<double>::quiet_NaN();
   CycleOutput last;
 };

@@ -205,6 +205,13 @@ const char* law_name(ControlLaw l) {
   }
 }
 
+Passivity passivity_from(const std::string& s) {
+  if (s == "observer_controller") return Passivity::kObserverController;
+  if (s == "off") return Passivity::kOff;
+  throw nb::value_error(
+      ("passivity: expected 'observer_controller' or 'off', got '" + s + "'").c_str());
+}
+
 ErrorVelocity error_velocity_from(const std::string& s) {
   if (s == "relative") return ErrorVelocity::kRelative;
   if (s == "handle") return ErrorVelocity::kHandle;
@@ -236,6 +243,7 @@ nb::list status_names(std::uint32_t s) {
       {status::kTorqueClamped, "torque_clamped"},
       {status::kNotConverged, "not_converged"},
       {status::kWatchdog, "watchdog"},
+      {status::kPassivity, "passivity"},
       {status::kFaultNonFiniteInput, "fault_nonfinite_input"},
       {status::kFaultNonFiniteOutput, "fault_nonfinite_output"},
       {status::kFaultBadSize, "fault_bad_size"},
@@ -327,6 +335,8 @@ nb::dict model_dict(const ControllerModel& m) {
   d["max_torque"] = m.max_torque;
   d["max_iterations"] = m.track.max_iterations;
   d["max_iterations_initial"] = m.track_initial.max_iterations;
+  d["passivity"] = m.passivity == Passivity::kOff ? "off" : "observer_controller";
+  d["passivity_max_energy_j"] = m.passivity_max_energy;
   d["q_min"] = Eigen::VectorXd(m.q_min);
   d["q_max"] = Eigen::VectorXd(m.q_max);
   nb::list r;
@@ -349,11 +359,25 @@ NB_MODULE(_core, m) {
   m.attr("STATUS_TORQUE_CLAMPED") = status::kTorqueClamped;
   m.attr("STATUS_NOT_CONVERGED") = status::kNotConverged;
   m.attr("STATUS_WATCHDOG") = status::kWatchdog;
+  m.attr("STATUS_PASSIVITY") = status::kPassivity;
   m.attr("STATUS_FAULT_NONFINITE_INPUT") = status::kFaultNonFiniteInput;
   m.attr("STATUS_FAULT_NONFINITE_OUTPUT") = status::kFaultNonFiniteOutput;
   m.attr("STATUS_FAULT_BAD_SIZE") = status::kFaultBadSize;
   m.attr("STATUS_FAULT_OUT_OF_RANGE") = status::kFaultOutOfRange;
   m.attr("STATUS_FAULT_MASK") = status::kFaultMask;
+  {
+    // ControllerSettings' defaults, the one place they live (the scenario format takes them)
+    const ControllerSettings s;
+    nb::dict d;
+    d["law"] = law_name(s.law);
+    d["error_velocity"] = s.error_velocity == ErrorVelocity::kHandle ? "handle" : "relative";
+    d["period_s"] = s.period_s;
+    d["ramp_time_s"] = s.ramp_time_s;
+    d["max_iterations"] = s.max_iterations;
+    d["passivity"] = s.passivity == Passivity::kOff ? "off" : "observer_controller";
+    d["passivity_max_energy_j"] = s.passivity_max_energy_j;
+    m.attr("CONTROLLER_DEFAULTS") = d;
+  }
   m.def("status_names", &status_names, "status"_a, "Names of the bits set in a status word.");
 
   // --- math
@@ -865,6 +889,14 @@ NB_MODULE(_core, m) {
       .def_ro("residual_star", &CycleOutput::residual_star)
       .def_ro("ramp", &CycleOutput::ramp, "Ramp-in factor applied, in [0, 1].")
       .def_ro("limit_scale", &CycleOutput::limit_scale, "Factor applied by the force/torque limits.")
+      .def_ro("energy", &CycleOutput::energy,
+              "Passivity observer: energy the rendering has absorbed and not returned, capped, "
+              "at this cycle's start [J] (0 with passivity off).")
+      .def_prop_ro("wrench_passivity",
+                   [](const CycleOutput& o) { return Eigen::VectorXd(o.wrench_passivity); },
+                   "The passivity controller's damping wrench (6,), before safety.")
+      .def_ro("passivity_damping", &CycleOutput::passivity_damping,
+              "The passivity controller's damping alpha this cycle (0: it did not act).")
       .def_ro("status", &CycleOutput::status, "Status bits (virtmech.status).")
       .def_ro("computation_time_us", &CycleOutput::computation_time_us, "[µs]")
       .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); })
@@ -879,7 +911,8 @@ NB_MODULE(_core, m) {
              double length_scale, const std::string& law, const std::string& error_velocity,
              double period_s, double ramp_time_s, double watchdog_s, double max_force,
              double max_torque, int max_iterations, int max_iterations_initial,
-             double secondary_weight, double range_margin_rad, double range_margin_m) {
+             double secondary_weight, double range_margin_rad, double range_margin_m,
+             const std::string& passivity, double passivity_max_energy_j) {
             ControllerSettings s;
             if (!kp.is_none()) s.kp = to_vec6("kp", kp);
             if (!kv.is_none()) s.kv = to_vec6("kv", kv);
@@ -899,6 +932,8 @@ NB_MODULE(_core, m) {
             s.secondary_weight = secondary_weight;
             s.range_margin_rad = range_margin_rad;
             s.range_margin_m = range_margin_m;
+            s.passivity = passivity_from(passivity);
+            s.passivity_max_energy_j = passivity_max_energy_j;
             new (self) Controller(std::move(device), std::move(mechanism), s);
           },
           "device"_a, "mechanism"_a, nb::kw_only(), "kp"_a = nb::none(), "kv"_a = nb::none(),
@@ -911,10 +946,12 @@ NB_MODULE(_core, m) {
           "secondary_weight"_a = ControllerSettings().secondary_weight,
           "range_margin_rad"_a = ControllerSettings().range_margin_rad,
           "range_margin_m"_a = ControllerSettings().range_margin_m,
+          "passivity"_a = "observer_controller",
+          "passivity_max_energy_j"_a = ControllerSettings().passivity_max_energy_j,
           "Controller(device, mechanism, **settings). Gains and weights are 6-vectors "
           "[x y z rx ry rz]; unset ones take the defaults of docs/theory.md (derived from the "
           "device's actuation and the length scale). law: 'auto' | 'null_space' (eq. 11) | "
-          "'under_actuated' (eq. 26).")
+          "'under_actuated' (eq. 26). passivity: 'observer_controller' (default) | 'off'.")
       .def(
           "step",
           [](Controller& self, nb::handle q, nb::handle dq, double t, nb::handle out,

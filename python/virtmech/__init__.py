@@ -11,6 +11,7 @@ are (6, n) with rows [v; w] in world axes; pose error e = [p_a - p_b; log(R_a R_
 
 from . import status
 from ._core import (
+    CONTROLLER_DEFAULTS,
     MAX_DOF,
     ChainMechanism,
     Controller,
@@ -37,6 +38,7 @@ from ._core import (
 )
 
 __all__ = [
+    "CONTROLLER_DEFAULTS",
     "MAX_DOF",
     "Controller",
     "ChainMechanism",

@@ -84,8 +84,9 @@ def _arm6_joints(vm: Any) -> tuple[list[Any], np.ndarray]:
     return joints, handle
 
 
-def make_case(name: str) -> Case:
-    """Builds one benchmark case (the same as the C++ harness's)."""
+def make_case(name: str, **settings) -> Case:
+    """Builds one benchmark case (the same as the C++ harness's); `settings` go to its
+    vm.Controller (the default settings, as the harness's, when none)."""
     import virtmech as vm
 
     omni_center = np.array([0.0, 0.5, 0.3, 0.0, 0.8, 0.0])
@@ -96,15 +97,15 @@ def make_case(name: str) -> Case:
         point = [0.0, 0.01 if name == "omni+probe" else -0.03, 0.0]
         dev = vm.PhantomOmni()
         mech = vm.Probe(point, [0, 1, 0], 0.1)
-        return Case(name, vm.Controller(dev, mech), omni_center, omni_amplitude)
+        return Case(name, vm.Controller(dev, mech, **settings), omni_center, omni_amplitude)
     if name == "omni+planar_arm":
         dev = vm.PhantomOmni()
         mech = vm.PlanarArm([0.0, 0.0, -0.05], [0, 0, 1], 0.05, [1, 0, 0])
-        return Case(name, vm.Controller(dev, mech), omni_center, omni_amplitude)
+        return Case(name, vm.Controller(dev, mech, **settings), omni_center, omni_amplitude)
     if name == "planar3r+planar_arm":
         dev = vm.Planar3R(0.2, 0.2, torque_limit=50.0, max_force=100.0)
         mech = vm.PlanarArm([0.25, 0.0, 0.0], [0, 0, 1], 0.1, [1, 0, 0])
-        return Case(name, vm.Controller(dev, mech), np.array([-0.5, 1.6, 0.5]),
+        return Case(name, vm.Controller(dev, mech, **settings), np.array([-0.5, 1.6, 0.5]),
                     np.array([0.2, 0.2, 0.3]))
     if name == "arm6+serial5":
         joints, handle = _arm6_joints(vm)
@@ -114,7 +115,7 @@ def make_case(name: str) -> Case:
         sh = np.eye(4)
         sh[:3, 3] = [0.3, 0, 0.2]
         mech = vm.SerialChain(sj, handle=sh, length_scale=0.1)
-        return Case(name, vm.Controller(dev, mech), np.full(6, 0.3), np.full(6, 0.4))
+        return Case(name, vm.Controller(dev, mech, **settings), np.full(6, 0.3), np.full(6, 0.4))
     raise ValueError(f"case: expected one of {', '.join(CASES)}, got {name!r}")
 
 

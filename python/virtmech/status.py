@@ -28,6 +28,9 @@ from ._core import (
     STATUS_OK as OK,
 )
 from ._core import (
+    STATUS_PASSIVITY as PASSIVITY,
+)
+from ._core import (
     STATUS_RAMPING as RAMPING,
 )
 from ._core import (
@@ -50,5 +53,6 @@ __all__ = [
     "RAMPING",
     "TORQUE_CLAMPED",
     "WATCHDOG",
+    "PASSIVITY",
     "names",
 ]

@@ -200,6 +200,8 @@ TEST(CApi, EveryDeviceMechanismAndOptionMatchesTheCppCycle) {
       ASSERT_EQ(diag.mechanism_dof, ref.mechanism().dof());
       for (int i = 0; i < n; ++i) ASSERT_EQ(tau[i], out.torque[i]) << step;
       for (int i = 0; i < 6; ++i) ASSERT_EQ(diag.wrench[i], out.wrench[i]) << step;
+      for (int i = 0; i < 6; ++i) ASSERT_EQ(diag.wrench_passivity[i], out.wrench_passivity[i]);
+      ASSERT_EQ(diag.energy, out.energy) << step;
       ASSERT_EQ(diag.active, out.active);
       ASSERT_EQ(diag.active_star, out.active_star);
     }
@@ -265,6 +267,15 @@ TEST(CApi, CreateNamesTheBadOption) {
   s.range_margin_m = -1.0;
   EXPECT_EQ(vm_controller_create(&dev, &mech, &s, &c, err, sizeof err), VM_ERROR_ARGUMENT);
   EXPECT_EQ(std::string(err).rfind("settings.range_margin_m: ", 0), 0u) << err;
+  vm_settings_init(&s);
+  EXPECT_EQ(s.passivity, 1);  // passive by default
+  s.passivity = 2;
+  EXPECT_EQ(vm_controller_create(&dev, &mech, &s, &c, err, sizeof err), VM_ERROR_ARGUMENT);
+  EXPECT_EQ(std::string(err).rfind("settings.passivity: ", 0), 0u) << err;
+  vm_settings_init(&s);
+  s.passivity_max_energy_j = -1.0;
+  EXPECT_EQ(vm_controller_create(&dev, &mech, &s, &c, err, sizeof err), VM_ERROR_ARGUMENT);
+  EXPECT_EQ(std::string(err).rfind("settings.passivity_max_energy_j: ", 0), 0u) << err;
   EXPECT_EQ(c, nullptr);
 }
 

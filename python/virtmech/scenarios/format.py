@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .._core import CONTROLLER_DEFAULTS as _C
 from .schema import Field
 
 INF = float("inf")
@@ -157,17 +158,34 @@ MECHANISM = Field(
 CONTROLLER = Field(
     "table",
     children={
-        "law": Field("string", default="auto", choices=("auto", "null_space", "under_actuated")),
+        "law": Field(
+            "string", default=_C["law"], choices=("auto", "null_space", "under_actuated")
+        ),
         "kp": opt_vec(6, "stiffness [N/m x3, N m/rad x3]"),
         "kv": opt_vec(6, "damping [N s/m x3, N m s/rad x3]"),
         "w_a": opt_vec(6),
         "w_e": opt_vec(6),
         "w_e_star": opt_vec(6),
-        "error_velocity": Field("string", default="relative", choices=("relative", "handle")),
-        "period_s": num(1e-3, min=1e-5, max=0.1),
-        "ramp_time_s": num(0.25, min=0, max=10),
+        "error_velocity": Field(
+            "string", default=_C["error_velocity"], choices=("relative", "handle")
+        ),
+        "period_s": num(_C["period_s"], min=1e-5, max=0.1),
+        "ramp_time_s": num(_C["ramp_time_s"], min=0, max=10),
         "max_force": num(0.0, min=0, max=1000),
-        "max_iterations": Field("integer", default=10, min=1, max=1000),
+        "max_iterations": Field("integer", default=_C["max_iterations"], min=1, max=1000),
+        "passivity": Field(
+            "string",
+            default=_C["passivity"],
+            choices=("observer_controller", "off"),
+            doc="time-domain passivity observer and controller at the motors (off: the laws "
+            "as written, the paper's behaviour)",
+        ),
+        "passivity_max_energy_j": num(
+            _C["passivity_max_energy_j"],
+            min=0,
+            max=1000,
+            doc="the most energy the passivity observer banks [J]",
+        ),
     },
 )
 

@@ -150,7 +150,16 @@ def make_mechanism(m: dict):
 def controller_kwargs(c: dict) -> dict:
     kw = {
         k: c[k]
-        for k in ("law", "error_velocity", "period_s", "ramp_time_s", "max_force", "max_iterations")
+        for k in (
+            "law",
+            "error_velocity",
+            "period_s",
+            "ramp_time_s",
+            "max_force",
+            "max_iterations",
+            "passivity",
+            "passivity_max_energy_j",
+        )
     }
     for k in ("kp", "kv", "w_a", "w_e", "w_e_star"):
         if k in c:
