@@ -28,7 +28,7 @@ extern "C" {
 #define VM_STATUS_TORQUE_CLAMPED (1u << 2)
 #define VM_STATUS_NOT_CONVERGED (1u << 3)
 #define VM_STATUS_WATCHDOG (1u << 4)
-#define VM_STATUS_PASSIVITY (1u << 5) /* the passivity controller damped this cycle */
+#define VM_STATUS_PASSIVITY (1u << 5) /* the energy tank held back the range term */
 #define VM_STATUS_FAULT_NONFINITE_INPUT (1u << 8)
 #define VM_STATUS_FAULT_NONFINITE_OUTPUT (1u << 9)
 #define VM_STATUS_FAULT_BAD_SIZE (1u << 10)
@@ -127,8 +127,9 @@ typedef struct vm_settings {
   double secondary_weight; /* tie-break weight of the full pose in both placements */
   double range_margin_rad; /* q may leave the joint range by this much [rad] ... */
   double range_margin_m;   /* ... or [m] before the fault VM_STATUS_FAULT_OUT_OF_RANGE */
-  int passivity;           /* 1 time-domain passivity observer and controller (default), 0 off */
-  double passivity_max_energy_j; /* the most energy the observer banks [J]; inf: no cap */
+  int passivity;           /* 1 energy tank (default), 0 off */
+  double passivity_max_energy_j; /* the most energy the tank holds [J]; inf: no cap */
+  double passivity_fade_j;       /* the range term fades out as the tank falls to -this [J] */
 } vm_settings;
 
 /* Diagnostics of the last cycle. */
@@ -145,8 +146,9 @@ typedef struct vm_diagnostics {
   int iterations, iterations_star;
   uint32_t active, active_star; /* joints held at a limit that acts (bit i: joint i) */
   double ramp, limit_scale;
-  double energy;               /* passivity observer: energy absorbed, not returned [J] */
-  double wrench_passivity[6];  /* the passivity controller's damping wrench */
+  double energy;               /* energy tank: the energy it may give [J] */
+  double wrench_passivity[6];  /* the part of the range term the tank held back */
+  double passivity_scale;      /* the range term's factor, [0, 1] */
   uint32_t status;
   double computation_time_us;
 } vm_diagnostics;

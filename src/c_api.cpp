@@ -216,11 +216,12 @@ ControllerSettings settings_from(const vm_settings& s) {
   c.range_margin_rad = s.range_margin_rad;
   c.range_margin_m = s.range_margin_m;
   if (s.passivity < 0 || s.passivity > 1) {
-    throw std::invalid_argument("settings.passivity: expected 0 (off) or 1 (observer and "
-                                "controller), got " + std::to_string(s.passivity));
+    throw std::invalid_argument("settings.passivity: expected 0 (off) or 1 (energy tank), got " +
+                                std::to_string(s.passivity));
   }
   c.passivity = static_cast<Passivity>(s.passivity);
   c.passivity_max_energy_j = s.passivity_max_energy_j;
+  c.passivity_fade_j = s.passivity_fade_j;
   return c;
 }
 
@@ -329,6 +330,7 @@ void vm_settings_init(vm_settings* s) {
   s->range_margin_m = d.range_margin_m;
   s->passivity = static_cast<int>(d.passivity);
   s->passivity_max_energy_j = d.passivity_max_energy_j;
+  s->passivity_fade_j = d.passivity_fade_j;
 }
 
 int vm_controller_create(const vm_device_desc* device, const vm_mechanism_desc* mechanism,
@@ -414,6 +416,7 @@ void vm_controller_diagnostics(const vm_controller* c, vm_diagnostics* d) {
   d->limit_scale = o.limit_scale;
   d->energy = o.energy;
   copy_vec(o.wrench_passivity, d->wrench_passivity, 6);
+  d->passivity_scale = o.passivity_scale;
   d->status = o.status;
   d->computation_time_us = o.computation_time_us;
 }

@@ -156,9 +156,15 @@ ControllerModel make_controller_model(const Device& device, const Mechanism& mec
   require_non_negative("range_margin_rad", s.range_margin_rad);
   require_non_negative("range_margin_m", s.range_margin_m);
   const int n = device.dof();
-  if (s.passivity != Passivity::kOff && s.passivity != Passivity::kObserverController) {
-    throw std::invalid_argument("passivity: expected off or observer_controller");
+  if (s.passivity != Passivity::kOff && s.passivity != Passivity::kEnergyTank) {
+    throw std::invalid_argument("passivity: expected off or energy_tank");
   }
+  if (!(s.passivity_fade_j > 0.0) || !std::isfinite(s.passivity_fade_j)) {
+    std::ostringstream os;
+    os << "passivity_fade_j: expected a finite number > 0 [J], got " << s.passivity_fade_j;
+    throw std::invalid_argument(os.str());
+  }
+  m.passivity_fade = s.passivity_fade_j;
   if (!(s.passivity_max_energy_j >= 0.0)) {
     std::ostringstream os;
     os << "passivity_max_energy_j: expected >= 0 [J] (inf: no cap), got " << s.passivity_max_energy_j;
@@ -166,7 +172,6 @@ ControllerModel make_controller_model(const Device& device, const Mechanism& mec
   }
   m.passivity = s.passivity;
   m.passivity_max_energy = s.passivity_max_energy_j;
-  m.passivity_metric = mask.cwiseProduct(unit);
   m.q_min.resize(n);
   m.q_max.resize(n);
   for (int i = 0; i < n; ++i) {
@@ -186,7 +191,8 @@ namespace {
 void fault(const Device& dev, ControllerData& d, std::uint32_t bits, CycleOutput& out) noexcept {
   out.status |= bits;
   out.torque.setZero(dev.dof());
-  d.energy = 0.0;  // the observer starts afresh with the ramp-in
+  d.energy = 0.0;  // the tank starts afresh with the ramp-in
+  d.range_scale = 1.0;
   d.have_last_torque = false;
   out.wrench.setZero();
   out.ramp = 0.0;
@@ -352,6 +358,7 @@ void range_space_term(const ControllerModel& M, const Mechanism& mech, Controlle
                out.error_star_dot);
     const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
     out.wrench_range = P->range(F);
+    if (M.passivity != Passivity::kOff) d.range_spring = P->range(M.kp.cwiseProduct(out.error_star));
     if (pass == 1) {
       // a released limit lets go: no force along its joint's motion, as the null-space
       // filter gives for the nearest placement (f <- f - W_A J_i (J_i^T f) / (J_i^T W_A J_i))
@@ -399,42 +406,62 @@ void keep_renderable(const ControllerModel& M, const Device& dev, ControllerData
   f -= out.wrench_unrendered;
 }
 
-// Passivity observer: the motors' exact work over the cycle just ended, the torque held
-// (zero-order) times the displacement, taken from the energy the rendering holds (capped).
-// Passivity controller: where the coming cycle's work, predicted as T f . v_R, would exceed
-// that energy, the least damping -alpha U v_R on the renderable axes that prevents it
-// (Hannaford & Ryu 2002; docs/theory.md, "Passivity"). Safety only scales f by (0, 1]
-// afterwards, which keeps a prediction within the energy within it.
+// The energy a spring holds whose force at the error e is f (a linear spring: e^T f / 2),
+// its force saturating at the wrench limits: per block of three axes, beyond the limit it
+// grows with the limit times |e| (e^T f (s - s^2 / 2), s = limit / |f|).
+double saturated_spring(const Vector6& e, const Vector6& f, double force_limit,
+                        double moment_limit) noexcept {
+  double energy = 0.0;
+  for (int b = 0; b < 2; ++b) {
+    const double ef = e.segment<3>(3 * b).dot(f.segment<3>(3 * b));
+    const double norm = f.segment<3>(3 * b).norm();
+    const double limit = b == 0 ? force_limit : moment_limit;
+    const double s = norm > limit ? limit / norm : 1.0;
+    energy += ef * (s - 0.5 * s * s);
+  }
+  return energy;
+}
+
+// Energy tank (docs/theory.md, "Passivity"). Its level is the energy the rendering has
+// absorbed: the motors' exact work over each cycle, the torque held (zero-order) times the
+// displacement, is taken from it. It starts with what the law's springs hold (their energy
+// at the start is the start's, brought in by the ramp-in) and holds at most that plus
+// passivity_max_energy_j. Eq. 26's range term is rendered in full while the level is not
+// below zero and fades out linearly as it falls to -passivity_fade_j: the motors never give
+// more than the user put in, plus that. The null-space term, a spring-damper about the
+// nearest placement, is rendered as it is.
 void passivity(const ControllerModel& M, const Device& dev, ControllerData& d, const double* q,
-               Vector6& f, CycleOutput& out) noexcept {
+               CycleOutput& out) noexcept {
   out.wrench_passivity.setZero();
-  out.passivity_damping = 0.0;
+  out.passivity_scale = 1.0;
   if (M.passivity == Passivity::kOff) {
-    out.energy = 0.0;
+    out.energy = out.stored_energy = 0.0;
     return;
   }
+  // the null term's spring Kp e (e is across the mechanism, where N(W_A) keeps it), and the
+  // range term's as the last cycle rendered it, its factor times P(W_A) Kp e*
+  double stored = saturated_spring(out.error, M.kp.cwiseProduct(out.error), M.max_force,
+                                   M.max_torque);
+  if (M.under_actuated_term) {
+    stored += d.range_scale *
+              saturated_spring(out.error_star, d.range_spring, M.max_force, M.max_torque);
+  }
+  out.stored_energy = stored;
   if (d.have_last_torque) {
     double work = 0.0;
     for (int i = 0; i < dev.dof(); ++i) work += d.last_torque[i] * (q[i] - d.last_q[i]);
     d.energy -= work;
+  } else {
+    d.energy = stored;
   }
-  d.energy = std::min(d.energy, M.passivity_max_energy);
+  d.energy = std::min(d.energy, stored + M.passivity_max_energy);
   out.energy = d.energy;
-  // A deficit (the last cycles' work beyond their prediction) is not paid back by damping
-  // the handle where the law commands no power, in free space say: the controller at most
-  // removes f's power, so its wrench is never larger than f (in the U norm) and never
-  // reverses f's power. The deficit stays in the observer and holds back later work.
-  const double budget = std::max(d.energy, 0.0);
-  const double predicted = M.period_s * f.dot(d.v_R);
-  // (a picojoule a cycle is left to the observer: rounding-level forces do not set the bit)
-  if (predicted <= budget + 1e-12) return;
-  const Vector6 mv = M.passivity_metric.cwiseProduct(d.v_R);
-  const double per_alpha = M.period_s * mv.dot(d.v_R);  // the work -alpha U v_R removes per alpha
-  if (!(per_alpha > 1e-300)) return;  // no renderable motion: no work either way
-  const double alpha = (predicted - budget) / per_alpha;
-  out.passivity_damping = alpha;
-  out.wrench_passivity = -alpha * mv;
-  f += out.wrench_passivity;
+  if (!M.under_actuated_term) return;
+  const double scale = std::clamp(1.0 + d.energy / M.passivity_fade, 0.0, 1.0);
+  d.range_scale = scale;
+  if (scale >= 1.0) return;
+  out.passivity_scale = scale;
+  out.wrench_passivity = (scale - 1.0) * out.wrench_range;
   out.status |= status::kPassivity;
 }
 
@@ -496,8 +523,9 @@ void begin(int n, CycleOutput& out) noexcept {
   out.ramp = 0.0;
   out.limit_scale = 1.0;
   out.energy = 0.0;
+  out.stored_energy = 0.0;
   out.wrench_passivity.setZero();
-  out.passivity_damping = 0.0;
+  out.passivity_scale = 1.0;
   out.computation_time_us = 0.0;
 }
 
@@ -522,6 +550,7 @@ void Controller::reset() noexcept {
   data_.first = true;
   data_.ramp_count = 0;
   data_.energy = 0.0;
+  data_.range_scale = 1.0;
   data_.have_last_torque = false;
   data_.last_t = std::numeric_limits<double>::quiet_NaN();
 }
@@ -584,8 +613,9 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   if (M.under_actuated_term) range_space_term(M, mech, d, out);
   Vector6 f = out.wrench_null + out.wrench_range;
 
+  passivity(M, dev, d, q, out);
+  f += out.wrench_passivity;
   keep_renderable(M, dev, d, f, out);
-  passivity(M, dev, d, q, f, out);
   safety(M, dev, d, f, out);
   if (M.passivity != Passivity::kOff) {
     d.last_q = Eigen::Map<const JointVector>(q, dev.dof());

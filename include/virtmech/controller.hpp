@@ -6,7 +6,7 @@
 // all state the cycle updates (both placements, the ramp counter), allocated once. The
 // cycle is a straight line of named stages over the two (src/controller.cpp):
 //   check_input -> device_kinematics -> place (nearest, un-powered) -> wrench (eq. 26)
-//   -> keep_renderable -> passivity -> safety -> outputs
+//   -> passivity (energy tank) -> keep_renderable -> safety -> outputs
 #pragma once
 
 #include <cstdint>
@@ -40,11 +40,10 @@ enum class ErrorVelocity : int {
 /// Whether the cycle keeps the rendering passive (docs/theory.md, "Passivity").
 enum class Passivity : int {
   kOff = 0,  //!< the laws as written: the motors may do net work (the paper's Fig. 11)
-  /// Time-domain passivity observer and controller (Hannaford & Ryu 2002) at the motors'
-  /// port: the observer sums the motors' exact work over each held cycle, -tau . dq; where
-  /// the coming cycle's work would exceed what the rendering has absorbed, the controller
-  /// adds the least damping on the handle's renderable velocity that prevents it. Default.
-  kObserverController = 1,
+  /// An energy tank filled by a passivity observer at the motors' port (Hannaford & Ryu
+  /// 2002): eq. 26's range term, the part of the law that does net work, is rendered only
+  /// as long as the user has put in the energy it gives. Default.
+  kEnergyTank = 1,
 };
 
 /// Status bits of a cycle. Bits below kFaultMask inform; a fault bit means zero torque.
@@ -55,7 +54,7 @@ constexpr std::uint32_t kForceClamped = 1u << 1;    //!< wrench scaled to the fo
 constexpr std::uint32_t kTorqueClamped = 1u << 2;   //!< torques scaled to the joint limits
 constexpr std::uint32_t kNotConverged = 1u << 3;    //!< a placement hit its iteration cap
 constexpr std::uint32_t kWatchdog = 1u << 4;        //!< cycle gap exceeded the watchdog
-constexpr std::uint32_t kPassivity = 1u << 5;       //!< the passivity controller damped
+constexpr std::uint32_t kPassivity = 1u << 5;       //!< the energy tank held back the range term
 constexpr std::uint32_t kFaultNonFiniteInput = 1u << 8;   //!< q or dq not finite
 constexpr std::uint32_t kFaultNonFiniteOutput = 1u << 9;  //!< computation produced NaN/inf
 constexpr std::uint32_t kFaultBadSize = 1u << 10;         //!< q or dq of the wrong length
@@ -88,10 +87,13 @@ struct ControllerSettings {
   /// (fault_out_of_range): revolute joints [rad], prismatic joints [m].
   double range_margin_rad = 5.0 * 3.14159265358979323846 / 180.0;
   double range_margin_m = 0.005;
-  Passivity passivity = Passivity::kObserverController;
-  /// The most energy the passivity observer banks [J]: what the rendering absorbed beyond
-  /// it (damping, a user pushing) is not returned later. inf: no cap.
-  double passivity_max_energy_j = 0.01;
+  Passivity passivity = Passivity::kEnergyTank;
+  /// The most energy the tank holds beyond what the law's springs store [J]: what the
+  /// rendering absorbed beyond it (damping, say) is not given back. inf: no cap.
+  double passivity_max_energy_j = 0.001;
+  /// The range term fades out linearly as the tank falls from 0 to -passivity_fade_j [J]:
+  /// the most the motors give beyond what the user put in
+  double passivity_fade_j = 5e-5;
 };
 
 /// The validated configuration with every default resolved.
@@ -115,11 +117,9 @@ struct ControllerModel {
   TrackOptions track, track_initial;
   std::array<bool, 6> renderable{};  //!< task axes the passive joints never move
   JointVector q_min, q_max;          //!< plausible q: the device's range widened by the margin
-  Passivity passivity = Passivity::kObserverController;
-  double passivity_max_energy = 0.01;  //!< [J]
-  /// The metric of the passivity controller's damping: U on the renderable task axes, 0 on
-  /// the rest (damping there would load the passive joints)
-  Vector6 passivity_metric = Vector6::Zero();
+  Passivity passivity = Passivity::kEnergyTank;
+  double passivity_max_energy = 0.001;  //!< [J]
+  double passivity_fade = 5e-5;        //!< [J]
 };
 
 /// Everything one cycle reports. Fixed-capacity members: copying never allocates.
@@ -142,14 +142,16 @@ struct CycleOutput {
   std::uint32_t active = 0, active_star = 0;
   double ramp = 0.0;              //!< ramp-in factor applied [0, 1]
   double limit_scale = 1.0;       //!< factor applied by force and torque limits (0, 1]
-  /// Passivity observer: the energy the rendering has absorbed and not returned, after the
-  /// cap, at this cycle's start [J] (the motors' work since the start is its negative, up to
-  /// the cap); 0 with passivity off
+  /// Energy tank: its level, the energy the rendering has absorbed (what the springs held at
+  /// the start minus the motors' work since, capped) [J]; 0 with passivity off
   double energy = 0.0;
-  /// Passivity controller: the damping wrench it added, -alpha U v_R on the renderable axes,
-  /// before safety (zero when it did not act)
+  /// What the law's springs hold [J]: Kp e at the nearest placement and, with eq. 26, the
+  /// range term's P(W_A) Kp e* times the factor the tank applied to it the cycle before,
+  /// each saturating at the wrench limits (docs/theory.md)
+  double stored_energy = 0.0;
+  /// The part of the range term the tank held back, (scale - 1) wrench_range
   Vector6 wrench_passivity = Vector6::Zero();
-  double passivity_damping = 0.0;  //!< its alpha [N·s/m; rotational axes N·m·s/rad / L^2]
+  double passivity_scale = 1.0;  //!< the range term's factor, in [0, 1]
   std::uint32_t status = status::kOk;
   double computation_time_us = 0.0;  //!< this cycle's own computation time [µs]
 };
@@ -184,7 +186,10 @@ struct ControllerData {
   WeightedProjector projector;    //!< P(W_A) at the un-powered placement; the renderable part
   bool first = true;            //!< next cycle starts placements afresh
   long ramp_count = 0;
-  // passivity observer: its energy [J], and the torque and q of the last good cycle
+  // energy tank: the energy absorbed [J], the range term's spring P(W_A) Kp e*, and the
+  // torque and q of the last good cycle
+  Vector6 range_spring = Vector6::Zero();
+  double range_scale = 1.0;  // the range term's factor the last cycle applied
   double energy = 0.0;
   bool have_last_torque = false;
   JointVector last_q, last_torque;

@@ -206,10 +206,9 @@ const char* law_name(ControlLaw l) {
 }
 
 Passivity passivity_from(const std::string& s) {
-  if (s == "observer_controller") return Passivity::kObserverController;
+  if (s == "energy_tank") return Passivity::kEnergyTank;
   if (s == "off") return Passivity::kOff;
-  throw nb::value_error(
-      ("passivity: expected 'observer_controller' or 'off', got '" + s + "'").c_str());
+  throw nb::value_error(("passivity: expected 'energy_tank' or 'off', got '" + s + "'").c_str());
 }
 
 ErrorVelocity error_velocity_from(const std::string& s) {
@@ -335,8 +334,9 @@ nb::dict model_dict(const ControllerModel& m) {
   d["max_torque"] = m.max_torque;
   d["max_iterations"] = m.track.max_iterations;
   d["max_iterations_initial"] = m.track_initial.max_iterations;
-  d["passivity"] = m.passivity == Passivity::kOff ? "off" : "observer_controller";
+  d["passivity"] = m.passivity == Passivity::kOff ? "off" : "energy_tank";
   d["passivity_max_energy_j"] = m.passivity_max_energy;
+  d["passivity_fade_j"] = m.passivity_fade;
   d["q_min"] = Eigen::VectorXd(m.q_min);
   d["q_max"] = Eigen::VectorXd(m.q_max);
   nb::list r;
@@ -374,8 +374,9 @@ NB_MODULE(_core, m) {
     d["period_s"] = s.period_s;
     d["ramp_time_s"] = s.ramp_time_s;
     d["max_iterations"] = s.max_iterations;
-    d["passivity"] = s.passivity == Passivity::kOff ? "off" : "observer_controller";
+    d["passivity"] = s.passivity == Passivity::kOff ? "off" : "energy_tank";
     d["passivity_max_energy_j"] = s.passivity_max_energy_j;
+    d["passivity_fade_j"] = s.passivity_fade_j;
     m.attr("CONTROLLER_DEFAULTS") = d;
   }
   m.def("status_names", &status_names, "status"_a, "Names of the bits set in a status word.");
@@ -890,13 +891,15 @@ NB_MODULE(_core, m) {
       .def_ro("ramp", &CycleOutput::ramp, "Ramp-in factor applied, in [0, 1].")
       .def_ro("limit_scale", &CycleOutput::limit_scale, "Factor applied by the force/torque limits.")
       .def_ro("energy", &CycleOutput::energy,
-              "Passivity observer: energy the rendering has absorbed and not returned, capped, "
-              "at this cycle's start [J] (0 with passivity off).")
+              "Energy tank: the energy it may give this cycle [J] (absorbed, capped, less what "
+              "the null-space spring stores; 0 with passivity off).")
+      .def_ro("stored_energy", &CycleOutput::stored_energy,
+              "What the law's springs hold [J] (the energy tank subtracts it).")
       .def_prop_ro("wrench_passivity",
                    [](const CycleOutput& o) { return Eigen::VectorXd(o.wrench_passivity); },
-                   "The passivity controller's damping wrench (6,), before safety.")
-      .def_ro("passivity_damping", &CycleOutput::passivity_damping,
-              "The passivity controller's damping alpha this cycle (0: it did not act).")
+                   "The part of the range term the energy tank held back (6,), before safety.")
+      .def_ro("passivity_scale", &CycleOutput::passivity_scale,
+              "The range term's factor the energy tank applied, in [0, 1].")
       .def_ro("status", &CycleOutput::status, "Status bits (virtmech.status).")
       .def_ro("computation_time_us", &CycleOutput::computation_time_us, "[µs]")
       .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); })
@@ -912,7 +915,8 @@ NB_MODULE(_core, m) {
              double period_s, double ramp_time_s, double watchdog_s, double max_force,
              double max_torque, int max_iterations, int max_iterations_initial,
              double secondary_weight, double range_margin_rad, double range_margin_m,
-             const std::string& passivity, double passivity_max_energy_j) {
+             const std::string& passivity, double passivity_max_energy_j,
+             double passivity_fade_j) {
             ControllerSettings s;
             if (!kp.is_none()) s.kp = to_vec6("kp", kp);
             if (!kv.is_none()) s.kv = to_vec6("kv", kv);
@@ -934,6 +938,7 @@ NB_MODULE(_core, m) {
             s.range_margin_m = range_margin_m;
             s.passivity = passivity_from(passivity);
             s.passivity_max_energy_j = passivity_max_energy_j;
+            s.passivity_fade_j = passivity_fade_j;
             new (self) Controller(std::move(device), std::move(mechanism), s);
           },
           "device"_a, "mechanism"_a, nb::kw_only(), "kp"_a = nb::none(), "kv"_a = nb::none(),
@@ -946,12 +951,13 @@ NB_MODULE(_core, m) {
           "secondary_weight"_a = ControllerSettings().secondary_weight,
           "range_margin_rad"_a = ControllerSettings().range_margin_rad,
           "range_margin_m"_a = ControllerSettings().range_margin_m,
-          "passivity"_a = "observer_controller",
+          "passivity"_a = "energy_tank",
           "passivity_max_energy_j"_a = ControllerSettings().passivity_max_energy_j,
+          "passivity_fade_j"_a = ControllerSettings().passivity_fade_j,
           "Controller(device, mechanism, **settings). Gains and weights are 6-vectors "
           "[x y z rx ry rz]; unset ones take the defaults of docs/theory.md (derived from the "
           "device's actuation and the length scale). law: 'auto' | 'null_space' (eq. 11) | "
-          "'under_actuated' (eq. 26). passivity: 'observer_controller' (default) | 'off'.")
+          "'under_actuated' (eq. 26). passivity: 'energy_tank' (default) | 'off'.")
       .def(
           "step",
           [](Controller& self, nb::handle q, nb::handle dq, double t, nb::handle out,

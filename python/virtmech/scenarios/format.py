@@ -176,15 +176,22 @@ CONTROLLER = Field(
         "passivity": Field(
             "string",
             default=_C["passivity"],
-            choices=("observer_controller", "off"),
-            doc="time-domain passivity observer and controller at the motors (off: the laws "
-            "as written, the paper's behaviour)",
+            choices=("energy_tank", "off"),
+            doc="energy_tank: eq. 26's range term only as long as the user has put in the "
+            "energy it gives (off: the laws as written, the paper's behaviour)",
         ),
         "passivity_max_energy_j": num(
             _C["passivity_max_energy_j"],
             min=0,
             max=1000,
-            doc="the most energy the passivity observer banks [J]",
+            doc="the most energy the tank holds [J]",
+        ),
+        "passivity_fade_j": num(
+            _C["passivity_fade_j"],
+            min=0,
+            min_exclusive=True,
+            max=1000,
+            doc="the range term fades out as the tank falls from 0 to minus this [J]",
         ),
     },
 )

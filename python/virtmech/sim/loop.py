@@ -159,6 +159,7 @@ def controller_kwargs(c: dict) -> dict:
             "max_iterations",
             "passivity",
             "passivity_max_energy_j",
+            "passivity_fade_j",
         )
     }
     for k in ("kp", "kv", "w_a", "w_e", "w_e_star"):

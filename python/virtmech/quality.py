@@ -1,0 +1,537 @@
+"""Rendering quality, measured on the simulation: what a user feels.
+
+For a scenario's device, mechanism, controller settings and hand (its intents are replaced),
+each measure runs short simulations (virtmech.sim.run) and reduces their logs:
+
+- `stiffness`: rendered stiffness per constrained axis and the deviation under pushes of a
+  pure force (0.5 N and 1 N by default), the hand's own stiffness off;
+- `free_force`: the force along the free direction while the hand moves along the
+  mechanism at constant speeds (0.05 and 0.2 m/s): what a fully actuated device renders as
+  zero;
+- `work`: the motors' exact work over closed runs (the torque held over each control cycle
+  times the joints' displacement), and how far a released handle travels;
+- `limit_cycles`: sustained oscillation after a tap, over a grid of hands and a released
+  handle;
+- `stability_map`: the Kp x Kv plane (Z-width style): which gains stay free of limit cycles;
+- `fidelity`: the force the under-actuated device renders against a fully actuated variant
+  of it rendering the same mechanism with the same hand, for eq. 11, eq. 26 and the naive
+  law (a full six-axis impedance with what the device cannot render dropped).
+
+Every run is independent; `workers` > 1 runs them in a process pool.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from itertools import product
+from multiprocessing import get_context
+from typing import Any
+
+import numpy as np
+
+#: hand grid of the stability checks (relaxed to tense; Hajian & Howe 1997 fits of the arm
+#: and fingertip): mass [kg], damping [N·s/m], stiffness [N/m]
+HUMAN_GRID = {
+    "mass_kg": (0.05, 0.2, 0.6),
+    "damping": (2.0, 5.0, 10.0),
+    "stiffness": (50.0, 200.0, 500.0),
+}
+#: a limit cycle: the force's AC part over the last window above this [N] rms ...
+LIMIT_CYCLE_RMS_N = 0.1
+#: ... and not decaying: at least this fraction of the window before
+LIMIT_CYCLE_PERSISTENCE = 0.7
+#: the window [s]
+LIMIT_CYCLE_WINDOW_S = 0.3
+
+#: columns a measure reads from each run
+_COLUMNS = (
+    "t",
+    "px",
+    "py",
+    "pz",
+    "sx",
+    "sy",
+    "sz",
+    "vx",
+    "vy",
+    "vz",
+    "fx",
+    "fy",
+    "fz",
+    "mx",
+    "my",
+    "mz",
+    "status",
+)
+
+
+# ---------------------------------------------------------------------------------------
+# runs
+
+
+@dataclass
+class Run:
+    """What a measure keeps of one simulation: the named columns, tau and q (n columns)."""
+
+    cols: dict[str, np.ndarray]
+    tau: np.ndarray
+    q: np.ndarray
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.cols["t"]
+
+    def motor_work(self, k0: int = 0, k1: int | None = None) -> float:
+        """The motors' work [J] from control cycle k0 to k1: tau_k held from q_k to q_k+1."""
+        k1 = len(self.t) - 1 if k1 is None else k1
+        return float(np.sum(self.tau[k0:k1] * np.diff(self.q[k0 : k1 + 1], axis=0)))
+
+
+def _simulate(raw: dict) -> Run:
+    from . import scenarios as sc
+    from .sim import run
+
+    scenario = sc.validate(raw, source=f"quality:{raw.get('name', '?')}")
+    r = run(scenario)
+    n = sum(c.startswith("tau") and c[3:].isdigit() for c in r.columns)
+    extra = [c for c in ("arm_pos_angle",) if c in r.columns]
+    cols = {c: r.col(c) for c in (*_COLUMNS, *extra)}
+    tau = r.cols(*[f"tau{i}" for i in range(n)])
+    q = r.cols(*[f"q{i}" for i in range(n)])
+    return Run(cols, tau, q)
+
+
+def run_all(raws: Sequence[dict], workers: int | None = 1) -> list[Run]:
+    """Simulates every raw scenario, in order; workers > 1 (None: the machine's cores) in a
+    process pool."""
+    workers = os.cpu_count() or 1 if workers is None else workers
+    if workers <= 1 or len(raws) <= 1:
+        return [_simulate(r) for r in raws]
+    with ProcessPoolExecutor(min(workers, len(raws)), mp_context=get_context("spawn")) as ex:
+        return list(ex.map(_simulate, raws))
+
+
+# ---------------------------------------------------------------------------------------
+# the scenario a measure varies
+
+
+class Setup:
+    """A scenario's device, mechanism, controller, hand, physics and start: the measures
+    replace its intents (and, where they say so, its controller settings and hand)."""
+
+    def __init__(self, scenario, controller: dict | None = None, human: dict | None = None):
+        from . import scenarios as sc
+
+        if not isinstance(scenario, sc.Scenario):
+            scenario = sc.load(scenario)
+        self.scenario = scenario
+        self.raw = {k: v for k, v in scenario.raw.items() if k not in ("intent", "checks")}
+        self.raw.setdefault("controller", {})
+        self.raw["controller"] = {**self.raw["controller"], **(controller or {})}
+        if human:
+            self.raw["human"] = {**self.raw.get("human", {}), **human}
+        self.mechanism = scenario.data["mechanism"]
+        from .sim.loop import make_mechanism
+
+        self._mech = make_mechanism(self.mechanism)
+        self._start: np.ndarray | None = None
+
+    def raw_with(
+        self,
+        name: str,
+        intents: list[dict],
+        duration_s: float,
+        controller: dict | None = None,
+        human: dict | None = None,
+    ) -> dict:
+        raw = dict(self.raw)
+        raw["name"] = f"{self.scenario.name}-{name}"
+        raw["intent"] = intents
+        raw["duration_s"] = duration_s
+        raw["controller"] = {**self.raw["controller"], **(controller or {})}
+        if human:
+            raw["human"] = {**self.raw.get("human", {}), **human}
+        return raw
+
+    # the point the mechanism holds: the handle (PlanarArm) or the stylus tip
+    def point(self, run: Run) -> np.ndarray:
+        p = np.stack([run.cols["px"], run.cols["py"], run.cols["pz"]], axis=1)
+        if self.mechanism["type"] == "PlanarArm":
+            return p
+        s = np.stack([run.cols["sx"], run.cols["sy"], run.cols["sz"]], axis=1)
+        return p + self.mechanism["length"] * s
+
+    def start(self, workers: int | None = 1) -> Run:
+        """A short hold: where the handle rests at the start."""
+        return run_all([self.raw_with("rest", [_hold(0.0, 0.4)], 0.4)], workers)[0]
+
+    def constrained_axes(self, rest: Run) -> dict[str, np.ndarray]:
+        """The directions the mechanism holds its point in, at rest (unit, world axes)."""
+        m = self.mechanism
+        t = m["type"]
+        p0 = self.point(rest)[-1]
+        if t == "PlanarArm":
+            n = _unit(m["normal"])
+            r = p0 - np.asarray(m["pivot"], dtype=float)
+            r -= (r @ n) * n
+            return {"radial": _unit(r), "normal": n}
+        if t == "Probe":
+            return {"into the plane": -_unit(m["plane_normal"])}
+        if t == "PointPivot":
+            return {"x": np.eye(3)[0], "y": np.eye(3)[1], "z": np.eye(3)[2]}
+        if t == "LineGuide":
+            d = _unit(m["direction"])
+            a = _unit(np.cross(d, np.eye(3)[np.argmin(np.abs(d))]))
+            return {"across 1": a, "across 2": np.cross(d, a)}
+        raise ValueError(
+            f"mechanism.type: quality measures PlanarArm, Probe, PointPivot and "
+            f"LineGuide, got {t!r}"
+        )
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def _hold(start: float, duration: float, **kw) -> dict:
+    return {"action": "hold", "start_s": start, "duration_s": duration, **kw}
+
+
+def _push(start: float, duration: float, force, ramp: float = 0.2, **kw) -> dict:
+    # a pure force: no stiffness of the hand (its damping stays, which a static push does
+    # not feel)
+    return {
+        "action": "push",
+        "start_s": start,
+        "duration_s": duration,
+        "ramp_s": ramp,
+        "force": [float(x) for x in force],
+        "stiffness": 0.0,
+        **kw,
+    }
+
+
+def _window(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    return (t >= t0) & (t < t1)
+
+
+# ---------------------------------------------------------------------------------------
+# the measures
+
+
+def stiffness(
+    setup: Setup,
+    forces: Iterable[float] = (0.5, 1.0),
+    workers: int | None = 1,
+    rest: Run | None = None,
+) -> dict:
+    """Per constrained axis: the deviation [m] of the mechanism's point along the push under
+    each force, and the rendered stiffness [N/m] (force / deviation at the largest force)."""
+    forces = [float(f) for f in forces]
+    rest = rest or setup.start(workers)
+    axes = setup.constrained_axes(rest)
+    hold_s, push_s, ramp = 0.4, 1.0, 0.2
+    raws, keys = [], []
+    for name, a in axes.items():
+        for f in forces:
+            raws.append(
+                setup.raw_with(
+                    f"push-{name}-{f:g}",
+                    [_hold(0.0, hold_s), _push(hold_s, push_s + 0.2, f * a, ramp)],
+                    hold_s + push_s,
+                )
+            )
+            keys.append((name, f))
+    runs = run_all(raws, workers)
+    out: dict[str, Any] = {}
+    for (name, f), r in zip(keys, runs):
+        x = setup.point(r) @ axes[name]
+        before = x[_window(r.t, hold_s - 0.1, hold_s)].mean()
+        during = x[_window(r.t, hold_s + push_s - 0.3, hold_s + push_s)].mean()
+        d = out.setdefault(name, {"axis": axes[name].tolist(), "deviation_m": {}})
+        d["deviation_m"][f"{f:g}"] = float(during - before)
+    for d in out.values():
+        f = max(forces)
+        dev = d["deviation_m"][f"{f:g}"]
+        d["stiffness_n_per_m"] = float(f / dev) if dev > 0 else math.inf
+    return out
+
+
+def free_force(
+    setup: Setup,
+    speeds: Iterable[float] = (0.05, 0.2),
+    distance_m: float = 0.04,
+    workers: int | None = 1,
+    rest: Run | None = None,
+) -> dict:
+    """The device's force along the hand's motion [N] while the hand moves `distance_m`
+    along the mechanism at each constant speed: mean (+: pushing the hand along) and peak,
+    over the cycles at speed."""
+    m = setup.mechanism
+    rest = rest or setup.start(workers)
+    raws, speeds = [], [float(s) for s in speeds]
+    for v in speeds:
+        seg = {
+            "action": "follow",
+            "start_s": 0.4,
+            "profile": "constant",
+            "speed_m_s": v,
+            "ramp_s": 0.05,
+        }
+        if m["type"] == "PlanarArm":
+            th0 = _arm_angle(m, setup.point(rest)[-1])
+            seg["theta"] = [th0, th0 + distance_m / m["length"]]
+            seg["orientation"] = "path"
+        else:
+            seg["offsets"] = [list(_tangent(m) * distance_m)]
+        duration = 0.4 + distance_m / v + 0.1 + 0.3
+        raws.append(setup.raw_with(f"move-{v:g}", [_hold(0.0, 0.4), seg], duration))
+    out = {}
+    for v, r in zip(speeds, run_all(raws, workers)):
+        vel = np.stack([r.cols["vx"], r.cols["vy"], r.cols["vz"]], axis=1)
+        f = np.stack([r.cols["fx"], r.cols["fy"], r.cols["fz"]], axis=1)
+        speed = np.linalg.norm(vel, axis=1)
+        at = speed > 0.8 * v
+        along = np.einsum("ij,ij->i", f[at], vel[at] / speed[at, None])
+        out[f"{v:g}"] = {
+            "mean_n": float(along.mean()),
+            "peak_n": float(np.abs(along).max()),
+            "cycles": int(at.sum()),
+        }
+    return out
+
+
+def _arm_angle(m: dict, p: np.ndarray) -> float:
+    """The PlanarArm's angle for a handle position (from its zero direction, about its
+    normal)."""
+    n = _unit(m["normal"])
+    x = _unit(m["zero_direction"])
+    y = np.cross(n, x)
+    r = p - np.asarray(m["pivot"], dtype=float)
+    return float(math.atan2(r @ y, r @ x))
+
+
+def _tangent(m: dict) -> np.ndarray:
+    """A direction the mechanism's point may move along (probes: in the plane or along the
+    line)."""
+    if m["type"] == "LineGuide":
+        return _unit(m["direction"])
+    n = _unit(m.get("plane_normal", m.get("normal", [0, 0, 1])))
+    return _unit(np.cross(n, np.eye(3)[np.argmin(np.abs(n))]))
+
+
+def work(setup: Setup, workers: int | None = 1, rest: Run | None = None) -> dict:
+    """The motors' net work [J] over closed runs (from rest to rest): a released handle, taps
+    into each constrained axis, and twist strokes of +-20 degrees with a passive hand; how
+    far the released handle travels [m] (and [deg] along a PlanarArm)."""
+    rest = rest or setup.start(workers)
+    axes = setup.constrained_axes(rest)
+    runs_spec = {
+        "released": (
+            [_hold(0.0, 0.5), {"action": "release", "start_s": 0.5, "duration_s": 2.0}],
+            2.5,
+        ),
+        "twist strokes": (
+            [
+                _hold(0.0, 0.4, translation="passive"),
+                {
+                    "action": "twist",
+                    "start_s": 0.4,
+                    "duration_s": 0.6,
+                    "angle_deg": 20.0,
+                    "translation": "passive",
+                },
+                {
+                    "action": "twist",
+                    "start_s": 1.0,
+                    "duration_s": 1.2,
+                    "angle_deg": -40.0,
+                    "translation": "passive",
+                },
+                {
+                    "action": "twist",
+                    "start_s": 2.2,
+                    "duration_s": 0.6,
+                    "angle_deg": 20.0,
+                    "translation": "passive",
+                },
+                _hold(2.8, 0.7, translation="passive"),
+            ],
+            3.5,
+        ),
+    }
+    for name, a in axes.items():
+        runs_spec[f"tap {name}"] = (
+            [_hold(0.0, 0.4), _push(0.4, 0.15, 1.0 * a, ramp=0.05), _hold(0.55, 0.95)],
+            1.5,
+        )
+    runs = run_all(
+        [setup.raw_with(k.replace(" ", "-"), i, d) for k, (i, d) in runs_spec.items()], workers
+    )
+    out = {}
+    for name, r in zip(runs_spec, runs):
+        entry = {"net_work_j": r.motor_work()}
+        if name == "released":
+            after = r.t >= 0.5
+            p = setup.point(r)
+            entry["travel_m"] = float(np.linalg.norm(p[after] - p[after][0], axis=1).max())
+            if "arm_pos_angle" in r.cols:
+                ang = np.unwrap(r.cols["arm_pos_angle"][after])
+                entry["travel_deg"] = float(np.degrees(np.abs(ang - ang[0]).max()))
+        out[name] = entry
+    return out
+
+
+def _release_spec() -> tuple[list[dict], float]:
+    return [_hold(0.0, 0.5), {"action": "release", "start_s": 0.5, "duration_s": 1.5}], 2.0
+
+
+def _tap_spec(axis: np.ndarray) -> tuple[list[dict], float]:
+    return [_hold(0.0, 0.4), _push(0.4, 0.1, 1.0 * axis, ramp=0.03), _hold(0.5, 1.5)], 2.0
+
+
+def limit_cycle(run: Run) -> dict:
+    """Sustained oscillation at the end of a run: the rms of the device force's AC part in
+    the last window and the window before it; a limit cycle where the last is above
+    LIMIT_CYCLE_RMS_N and has not decayed below LIMIT_CYCLE_PERSISTENCE of the one before."""
+    f = np.stack([run.cols["fx"], run.cols["fy"], run.cols["fz"]], axis=1)
+    t_end, w = run.t[-1], LIMIT_CYCLE_WINDOW_S
+
+    def rms(t0, t1):
+        x = f[_window(run.t, t0, t1)]
+        return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
+
+    last, before = rms(t_end - w, t_end + 1e-9), rms(t_end - 2 * w, t_end - w)
+    return {
+        "rms_last_n": last,
+        "rms_before_n": before,
+        "limit_cycle": bool(last > LIMIT_CYCLE_RMS_N and last >= LIMIT_CYCLE_PERSISTENCE * before),
+    }
+
+
+def limit_cycles(
+    setup: Setup,
+    grid: dict | None = None,
+    controller: dict | None = None,
+    workers: int | None = 1,
+    rest: Run | None = None,
+) -> dict:
+    """A tap into the first constrained axis for every hand of `grid` (HUMAN_GRID), and a
+    released handle: which end in a limit cycle."""
+    grid = HUMAN_GRID if grid is None else grid
+    rest = rest or setup.start(workers)
+    axis = next(iter(setup.constrained_axes(rest).values()))
+    names = list(grid)
+    hands = [dict(zip(names, v)) for v in product(*(grid[k] for k in names))]
+    raws = []
+    for i, h in enumerate(hands):
+        intents, dur = _tap_spec(axis)
+        raws.append(setup.raw_with(f"hand-{i}", intents, dur, controller, human=h))
+    intents, dur = _release_spec()
+    raws.append(setup.raw_with("released", intents, dur, controller))
+    runs = run_all(raws, workers)
+    rows = [{**h, **limit_cycle(r)} for h, r in zip(hands, runs[:-1])]
+    released = limit_cycle(runs[-1])
+    return {
+        "hands": rows,
+        "released": released,
+        "stable": sum(not r["limit_cycle"] for r in rows) + (not released["limit_cycle"]),
+        "total": len(rows) + 1,
+    }
+
+
+def stability_map(
+    setup: Setup,
+    kp: Sequence[float],
+    kv: Sequence[float],
+    hands: Sequence[dict] | None = None,
+    workers: int | None = 1,
+) -> dict:
+    """For each translational Kp [N/m] x Kv [N·s/m]: stable when no hand of `hands` (the
+    grid's lightest and heaviest, least and most damped, stiffest) nor the released handle
+    ends in a limit cycle."""
+    if hands is None:
+        hands = [
+            {"mass_kg": m, "damping": b, "stiffness": 500.0}
+            for m in (0.05, 0.6)
+            for b in (2.0, 10.0)
+        ]
+    rest = setup.start(workers)
+    axis = next(iter(setup.constrained_axes(rest).values()))
+    raws, keys = [], []
+    for p, v in product(kp, kv):
+        ctrl = {"kp": [p, p, p, 0.0, 0.0, 0.0], "kv": [v, v, v, 0.0, 0.0, 0.0]}
+        if setup.scenario.data["device"].get("actuated", [True] * 3)[3:] == [True] * 3:
+            L2 = setup._mech.length_scale**2
+            ctrl = {"kp": [p] * 3 + [p * L2] * 3, "kv": [v] * 3 + [v * L2] * 3}
+        for i, h in enumerate(hands):
+            intents, dur = _tap_spec(axis)
+            raws.append(setup.raw_with(f"map-{p:g}-{v:g}-{i}", intents, dur, ctrl, human=h))
+            keys.append((p, v))
+        intents, dur = _release_spec()
+        raws.append(setup.raw_with(f"map-{p:g}-{v:g}-released", intents, dur, ctrl))
+        keys.append((p, v))
+    stable = {k: True for k in product(kp, kv)}
+    for k, r in zip(keys, run_all(raws, workers)):
+        stable[k] = stable[k] and not limit_cycle(r)["limit_cycle"]
+    grid = np.array([[stable[(p, v)] for v in kv] for p in kp])
+    return {"kp": list(map(float, kp)), "kv": list(map(float, kv)), "stable": grid.tolist()}
+
+
+#: the laws `fidelity` compares, as controller settings on the under-actuated device
+def _laws(L: float) -> dict[str, dict]:
+    full = [1.0, 1.0, 1.0, L * L, L * L, L * L]
+    return {
+        "eq. 11": {"law": "null_space", "passivity": "off"},
+        "eq. 26": {"law": "under_actuated", "passivity": "off"},
+        "naive": {"law": "null_space", "passivity": "off", "w_a": full, "w_e": full},
+        "eq. 26, passive": {"law": "under_actuated", "passivity": "energy_tank"},
+    }
+
+
+def fidelity(setup: Setup, workers: int | None = 1) -> dict:
+    """The scenario (with its own intents) on the device as it is, for each law, against a
+    fully actuated variant (every joint driven, eq. 11 with full weights): the relative rms
+    of the force difference, |f - f_full|_rms / |f_full|_rms, over the run, and the rms of
+    each."""
+    import virtmech as vm
+
+    data = setup.scenario.data
+    if data["device"]["type"] != "PhantomOmni":
+        raise ValueError(
+            "fidelity: needs a device with a fully actuated variant (PhantomOmni), "
+            f"got {data['device']['type']!r}"
+        )
+    L = setup._mech.length_scale
+    k, b = vm.PhantomOmni().stiffness, vm.PhantomOmni().damping
+    full = [1.0, 1.0, 1.0, L * L, L * L, L * L]
+    raw = {k_: v for k_, v in setup.scenario.raw.items() if k_ != "checks"}
+    raws = {}
+    for name, ctrl in _laws(L).items():
+        r = {**raw, "controller": {**raw.get("controller", {}), **ctrl}}
+        if name == "naive":
+            r["controller"]["kp"] = [k * u for u in full]
+            r["controller"]["kv"] = [b * u for u in full]
+        raws[name] = r
+    fa = dict(raw)
+    fa["device"] = {**raw["device"], "actuated": [True] * 6}
+    fa["controller"] = {**raw.get("controller", {}), "law": "null_space", "passivity": "off"}
+    raws["fully actuated"] = fa
+    runs = dict(zip(raws, run_all(list(raws.values()), workers)))
+    ref = runs.pop("fully actuated")
+    f_ref = np.stack([ref.cols["fx"], ref.cols["fy"], ref.cols["fz"]], axis=1)
+    rms_ref = float(np.sqrt(np.mean(np.sum(f_ref**2, axis=1))))
+    out = {"fully actuated": {"force_rms_n": rms_ref}}
+    for name, r in runs.items():
+        f = np.stack([r.cols["fx"], r.cols["fy"], r.cols["fz"]], axis=1)
+        diff = float(np.sqrt(np.mean(np.sum((f - f_ref) ** 2, axis=1))))
+        out[name] = {
+            "force_rms_n": float(np.sqrt(np.mean(np.sum(f**2, axis=1)))),
+            "relative_rms_error": diff / rms_ref if rms_ref > 0 else math.inf,
+        }
+    return out
