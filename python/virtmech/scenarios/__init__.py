@@ -118,7 +118,8 @@ def _consistency_errors(d: dict) -> list[str]:
         errors += _intent_errors(i, seg, c["period_s"])
     q = d["initial"].get("q")
     if q is not None:
-        n = 6 if d["device"]["type"] == "PhantomOmni" else 3
+        dev = d["device"]
+        n = {"PhantomOmni": 6, "Planar3R": 3}.get(dev["type"]) or len(dev.get("joints", []))
         if len(q) != n:
             errors.append(
                 f"initial.q: expected {n} numbers (one per joint of "
