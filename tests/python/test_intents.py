@@ -345,6 +345,30 @@ def test_taking_hold_again_starts_the_anchor_from_the_handle():
     assert np.abs(r.cols("fhx", "fhy", "fhz")[k + 50 :]).max() > 1e-3
 
 
+def test_taking_hold_again_restores_the_models_constants(monkeypatch):
+    models = []
+    compile_model = loop.compile_model
+
+    def keep(built):
+        models.append(compile_model(built))
+        return models[-1]
+
+    monkeypatch.setattr(loop, "compile_model", keep)
+    hold = {"action": "hold", "start_s": 0.0, "duration_s": 0.0}
+    s = load("omni-fig10").with_overrides(duration_s=0.06, intent=[hold])
+    run(s)  # never released: the compiled constants
+    run(s.with_overrides(intent=[hold, {"action": "release", "start_s": 0.02},
+                                 {**hold, "start_s": 0.04}]))  # fmt: skip
+    run(s.with_overrides(intent=[hold, {"action": "release", "start_s": 0.02}]))  # ends so
+    compiled, again, ended = models
+    for m in (again, ended):  # the loop, destroyed, has restored the hand of the last
+        for name in ("body_mass", "body_inertia", "body_subtreemass", "dof_M0",
+                     "dof_invweight0", "body_invweight0", "tendon_invweight0",
+                     "actuator_acc0"):  # fmt: skip
+            np.testing.assert_allclose(getattr(m, name), getattr(compiled, name), rtol=1e-12,
+                                       atol=0, err_msg=name)  # fmt: skip
+
+
 # ---- the C++ loop and the Python reference --------------------------------------------------
 
 
