@@ -175,6 +175,10 @@ def test_constant_speed_duration_and_speed_errors():
         base.with_overrides(intent=[{k: v for k, v in seg.items() if k != "speed_m_s"}])
     with pytest.raises(ScenarioError, match=r"intent\[0\]\.duration_s: missing required"):
         base.with_overrides(intent=[{**seg, "profile": "min_jerk"}])
+    # a path along a mechanism of more than one joint: reported when the run starts
+    probe = load("omni-contact").with_overrides(duration_s=0.01, intent=[seg])
+    with pytest.raises(ScenarioError, match=r"intent\[0\]\.theta: expected a one-joint"):
+        run(probe)
     # a path too short for its ramps at that speed: reported when the run starts
     fast = base.with_overrides(duration_s=0.01, intent=[{**seg, "speed_m_s": 5.0}])
     with pytest.raises(ScenarioError, match=r"intent\[0\]\.speed_m_s: value 5 is out of range"):
@@ -255,6 +259,8 @@ def test_oscillation_errors_name_the_key():
     with pytest.raises(ScenarioError, match=r"intent\[0\]\.f1_hz: missing required"):
         base.with_overrides(intent=[{"action": "chirp", "start_s": 0.0, "duration_s": 0.2,
                                      "amplitude_m": 0.01, "f0_hz": 1.0}])  # fmt: skip
+    with pytest.raises(ScenarioError, match=r"intent\[0\]\.orientation: value 'passive' not"):
+        base.with_overrides(intent=[{**seg, "amplitude_deg": 5.0, "orientation": "passive"}])
     with pytest.raises(ScenarioError, match=r"intent\[0\]\.duration_s: value 0 .* > 0"):
         base.with_overrides(intent=[{**seg, "amplitude_m": 0.01, "duration_s": 0.0}])
 

@@ -167,6 +167,13 @@ def _intent_errors(i: int, seg: dict, period_s: float) -> list[str]:
                 f"{at}.duration_s: value {seg['duration_s']:g} is out of range; expected a "
                 f"number [s] > 0 for a {action}"
             )
+        for amp, group, default in (("amplitude_m", "translation", "hold"),
+                                    ("amplitude_deg", "orientation", "hold")):  # fmt: skip
+            if amp in seg and seg.get(group, default) == "passive":
+                errors.append(
+                    f"{at}.{group}: value 'passive' not allowed with {amp}; expected 'hold' "
+                    f"(a passive {group} has no stiffness: the oscillation would not act)"
+                )
         nyquist = 0.5 / period_s
         for key in ("frequency_hz", "f0_hz", "f1_hz"):
             if key in seg and seg[key] > nyquist:

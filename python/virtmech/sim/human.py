@@ -264,6 +264,13 @@ class Intent:
         self.attached = True  # False: released
         # each segment's duration [s]: a constant-speed follow's from its path and speed
         self._arcs: dict[int, ArcLength] = {}
+        for i, seg in enumerate(self.segments):
+            if seg["action"] == "follow" and "theta" in seg and mechanism.dof != 1:
+                raise ValueError(
+                    f"intent[{i}].theta: expected a one-joint mechanism (theta = [a, b] are its "
+                    f"joint values), got {type(mechanism).__name__} with {mechanism.dof} "
+                    "joints; give the path as offsets instead"
+                )
         self.durations = [self._duration(i, seg) for i, seg in enumerate(self.segments)]
 
     def _path_length(self, i: int, seg: dict) -> float:
