@@ -183,6 +183,10 @@ def test_constant_speed_duration_and_speed_errors():
     fast = base.with_overrides(duration_s=0.01, intent=[{**seg, "speed_m_s": 5.0}])
     with pytest.raises(ScenarioError, match=r"intent\[0\]\.speed_m_s: value 5 is out of range"):
         run(fast)
+    # named by its place in the file, not in time
+    late = {"action": "hold", "start_s": 0.005, "duration_s": 0.0}
+    with pytest.raises(ScenarioError, match=r"intent\[1\]\.speed_m_s: value 5"):
+        run(fast.with_overrides(intent=[late, {**seg, "speed_m_s": 5.0}]))
 
 
 # ---- sine and chirp -----------------------------------------------------------------------

@@ -240,12 +240,18 @@ class HandTarget:
 
 
 class Intent:
-    """The intent timeline: call `update(t, T_handle)` once per control cycle, in order."""
+    """The intent timeline: `plan(k0, k1, T_handle)` over consecutive stretches of cycles
+    (see `start_cycles`), or the older `update(t, T_handle)` once per control cycle, in order
+    (the original actions only). Segments are the [[intent]] tables as dicts; a mistake that
+    needs the mechanism raises a ValueError naming `intent[i].key` (i: the segment's place
+    in `segments`)."""
 
     def __init__(
         self, segments: list[dict], hand: HandImpedance, mechanism, T0: np.ndarray, period_s: float
     ):
-        self.segments = sorted(segments, key=lambda s: s["start_s"])
+        order = sorted(range(len(segments)), key=lambda i: segments[i]["start_s"])
+        self.segments = [segments[i] for i in order]
+        self._given = order  # each (sorted) segment's index in `segments`
         self.hand = hand
         self.mechanism = mechanism
         self.T = period_s
@@ -267,9 +273,9 @@ class Intent:
         for i, seg in enumerate(self.segments):
             if seg["action"] == "follow" and "theta" in seg and mechanism.dof != 1:
                 raise ValueError(
-                    f"intent[{i}].theta: expected a one-joint mechanism (theta = [a, b] are its "
-                    f"joint values), got {type(mechanism).__name__} with {mechanism.dof} "
-                    "joints; give the path as offsets instead"
+                    f"intent[{self._given[i]}].theta: expected a one-joint mechanism (theta = "
+                    f"[a, b] are its joint values), got {type(mechanism).__name__} with "
+                    f"{mechanism.dof} joints; give the path as offsets instead"
                 )
         self.durations = [self._duration(i, seg) for i, seg in enumerate(self.segments)]
 
@@ -289,14 +295,14 @@ class Intent:
             L, V, r = self._path_length(i, seg), float(seg["speed_m_s"]), seg.get("ramp_s", 0.1)
             if not L > 0.0:
                 raise ValueError(
-                    f"intent[{i}].speed_m_s: a constant-speed follow needs a path of non-zero "
-                    f"length; its path is {L:g} m long"
+                    f"intent[{self._given[i]}].speed_m_s: a constant-speed follow needs a path "
+                    f"of non-zero length; its path is {L:g} m long"
                 )
             if L < V * r:
                 raise ValueError(
-                    f"intent[{i}].speed_m_s: value {V:g} is out of range; expected at most "
-                    f"path length / ramp_s = {L:.6g} m / {r:g} s = {L / r:.6g} m/s (the ramps "
-                    f"in and out cover speed * ramp_s of the {L:.6g} m path)"
+                    f"intent[{self._given[i]}].speed_m_s: value {V:g} is out of range; expected "
+                    f"at most path length / ramp_s = {L:.6g} m / {r:g} s = {L / r:.6g} m/s "
+                    f"(the ramps in and out cover speed * ramp_s of the {L:.6g} m path)"
                 )
             return L / V + r
         return float(seg.get("duration_s", 0.0))
@@ -547,8 +553,8 @@ class Intent:
                 or seg.get("profile", "min_jerk") != "min_jerk"
             ):
                 raise ValueError(
-                    f"Intent.update: intent[{self.active}] (action {seg['action']!r}) is "
-                    "planned by Intent.plan only"
+                    f"Intent.update: intent[{self._given[self.active]}] (action "
+                    f"{seg['action']!r}) is planned by Intent.plan only"
                 )
             dur = seg.get("duration_s", 0.0)
             s = min_jerk((t - seg["start_s"]) / dur) if dur > 0 else 1.0
