@@ -107,12 +107,13 @@ def test_a_moment_on_a_hold_is_added_to_the_impedance():
 # ---- constant speed -----------------------------------------------------------------------
 
 
-def test_constant_speed_along_a_mechanism_path():
+@pytest.mark.parametrize("a, b", [(0.2, 1.0), (1.0, 0.2)])
+def test_constant_speed_along_a_mechanism_path(a, b):
     R, V, ramp = 0.1, 0.2, 0.02
     arm = vm.PlanarArm([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], R)
-    seg = {"action": "follow", "start_s": 0.0, "theta": [0.2, 1.0], "profile": "constant",
+    seg = {"action": "follow", "start_s": 0.0, "theta": [a, b], "profile": "constant",
            "speed_m_s": V, "ramp_s": ramp, "orientation": "path"}  # fmt: skip
-    T0 = arm.forward([0.2])
+    T0 = arm.forward([a])
     intent = Intent([seg], HandImpedance(), arm, T0, T)
     L = R * 0.8
     D = L / V + ramp  # the documented duration: path / speed + ramp_s
@@ -126,18 +127,19 @@ def test_constant_speed_along_a_mechanism_path():
     phi = np.unwrap(np.arctan2(p[:, 1], p[:, 0]))
     cruise = (t > ramp + 1e-9) & (t < D - ramp - 1e-9)
     c = np.flatnonzero(cruise)
-    arc_speed = R * np.diff(phi)[c[:-1]] / T  # between two cruise samples
+    arc_speed = R * np.diff(phi)[c[:-1]] / T * np.sign(b - a)  # between two cruise samples
     np.testing.assert_allclose(arc_speed, V, atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(v[cruise], axis=1), V, atol=1e-9)
-    # v is the exact derivative: tangent to the circle
+    # v is the exact derivative: tangent to the circle, the way the anchor goes
     np.testing.assert_allclose(np.einsum("ij,ij->i", v, p), 0.0, atol=1e-12)
+    assert (np.einsum("ij,ij->i", v[1:][cruise[1:]], np.diff(p, axis=0)[cruise[1:]]) > 0).all()
     # it starts from rest, ends at theta = 1.0 at rest, and the speed ramp is smooth
     assert np.linalg.norm(v[0]) == 0.0 and np.linalg.norm(v[-1]) == 0.0
-    np.testing.assert_allclose(p[-1], np.asarray(arm.forward([1.0]))[:3, 3], atol=1e-12)
+    np.testing.assert_allclose(p[-1], np.asarray(arm.forward([b]))[:3, 3], atol=1e-12)
     assert np.abs(np.diff(np.linalg.norm(v, axis=1))).max() < 2 * V / ramp * T
     # the orientation turns with the path
     R_end = P[-1, plan_slice("R00", 9)].reshape(3, 3)
-    np.testing.assert_allclose(R_end, np.asarray(arm.forward([1.0]))[:3, :3], atol=1e-9)
+    np.testing.assert_allclose(R_end, np.asarray(arm.forward([b]))[:3, :3], atol=1e-9)
 
 
 def test_constant_speed_along_offsets():

@@ -484,7 +484,8 @@ class Intent:
             arc = self._arcs[i]
             th = arc.theta_at(d)
             p, R = self._follow_theta(seg, th)
-            tangent = arc.dp(th)
+            # the unit tangent the way the anchor goes (theta may decrease along the path)
+            tangent = arc.sign * arc.dp(th)
             tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
         else:
             p, R = self._follow_batch(seg, d / L)
