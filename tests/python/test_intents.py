@@ -413,3 +413,40 @@ def test_compiled_loop_gives_the_python_reference_log_with_the_new_intents(monke
     released = (a.t >= 0.2 - 1e-9) & (a.t < 0.3 - 1e-9)
     assert not a.cols("fhx", "fhy", "fhz", "mhx", "mhy", "mhz")[released].any()
     assert np.abs(a.cols("fhx", "fhy", "fhz")[a.t > 0.4]).max() > 1e-3
+
+
+def test_after_a_release_the_handle_moves_as_on_a_model_built_without_the_hand():
+    # the run's state some cycles after the hand let go, stepped on a model built without
+    # the hand body with the motor torques the run logged: the same motion
+    s = load("omni-fig10").with_overrides(
+        duration_s=0.2,
+        intent=[{"action": "hold", "start_s": 0.0, "duration_s": 0.0},
+                {"action": "release", "start_s": 0.05}],
+    )  # fmt: skip
+    r = run(s)
+    S = s.data
+    device = loop.make_device(S["device"])
+    nsub = int(round(S["physics"]["rate_hz"] * T))
+    built = loop.build_mjcf(
+        device,
+        params=loop.device_physics(S["device"]),
+        hand=HandBody(0.0, 0.0),
+        gravity=loop.world_gravity(device),
+        timestep=T / nsub,
+    )
+    m = loop.compile_model(built)
+    assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "hand") == -1
+    d = mujoco.MjData(m)
+    C, c0 = built.coupling.C, built.coupling.c0
+    n = device.dof
+    q, dq = r.cols(*[f"q{i}" for i in range(n)]), r.cols(*[f"dq{i}" for i in range(n)])
+    tau = r.cols(*[f"tau_motor{i}" for i in range(n)])
+    act = np.flatnonzero(np.asarray(device.actuated, dtype=bool))
+    k0 = int(round(0.08 / T))
+    d.qpos[:], d.qvel[:] = C @ q[k0] + c0, C @ dq[k0]
+    for k in range(k0, k0 + 100):
+        d.ctrl[:] = tau[k, act]
+        for _ in range(nsub):
+            mujoco.mj_step(m, d)
+        np.testing.assert_allclose(np.linalg.solve(C, d.qpos - c0), q[k + 1], atol=1e-9)
+    assert np.ptp(q[k0 : k0 + 100, 0]) > 1e-3  # it moved
