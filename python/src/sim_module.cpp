@@ -69,7 +69,8 @@ PlanLayout plan_layout(const nb::dict& d) {
                     {"anchor_R", &L::anchor_R}, {"anchor_v", &L::anchor_v},
                     {"anchor_w", &L::anchor_w}, {"k_t", &L::k_t}, {"b_t", &L::b_t},
                     {"k_r", &L::k_r}, {"b_r", &L::b_r}, {"force", &L::force},
-                    {"force_in_handle", &L::force_in_handle}, {"segment", &L::segment}});
+                    {"moment", &L::moment}, {"force_in_handle", &L::force_in_handle},
+                    {"hand_attached", &L::hand_attached}, {"segment", &L::segment}});
 }
 
 LogLayout log_layout(const nb::dict& d) {
@@ -92,19 +93,19 @@ struct PyServoLoop {
               CF64 coupling_inv, CF64 coupling_offset, std::vector<int> actuated, int substeps,
               double period_s, std::vector<int> comp_bodies, std::vector<double> comp_masses,
               CF64 gravity, double quantum, int delay_cycles, double velocity_alpha,
-              const nb::dict& plan, const nb::dict& log)
-      : loop(controller, reinterpret_cast<const mjModel*>(model),
-             reinterpret_cast<mjData*>(data),
+              int hand_body, const nb::dict& plan, const nb::dict& log)
+      : loop(controller, reinterpret_cast<mjModel*>(model), reinterpret_cast<mjData*>(data),
              settings(controller.device().dof(), coupling_inv, coupling_offset,
                       std::move(actuated), substeps, period_s, std::move(comp_bodies),
-                      std::move(comp_masses), gravity, quantum, delay_cycles, velocity_alpha),
+                      std::move(comp_masses), gravity, quantum, delay_cycles, velocity_alpha,
+                      hand_body),
              plan_layout(plan), log_layout(log)) {}
 
   static LoopSettings settings(int n, const CF64& coupling_inv, const CF64& coupling_offset,
                                std::vector<int> actuated, int substeps, double period_s,
                                std::vector<int> comp_bodies, std::vector<double> comp_masses,
                                const CF64& gravity, double quantum, int delay_cycles,
-                               double velocity_alpha) {
+                               double velocity_alpha, int hand_body) {
     const auto un = static_cast<size_t>(n);
     require_shape("coupling_inv", coupling_inv, un, un);
     require_shape("coupling_offset", coupling_offset, un, 0);
@@ -122,6 +123,7 @@ struct PyServoLoop {
     s.quantum = quantum;
     s.delay_cycles = delay_cycles;
     s.velocity_alpha = velocity_alpha;
+    s.hand_body = hand_body;
     return s;
   }
 
@@ -153,14 +155,17 @@ NB_MODULE(_sim, m) {
                           "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).")
       .def(nb::init<Controller&, std::uintptr_t, std::uintptr_t, CF64, CF64, std::vector<int>,
                     int, double, std::vector<int>, std::vector<double>, CF64, double, int,
-                    double, const nb::dict&, const nb::dict&>(),
+                    double, int, const nb::dict&, const nb::dict&>(),
            "controller"_a, "model"_a, "data"_a, "coupling_inv"_a, "coupling_offset"_a,
            "actuated"_a, "substeps"_a, "period_s"_a, "comp_bodies"_a, "comp_masses"_a,
-           "gravity"_a, "quantum"_a, "delay_cycles"_a, "velocity_alpha"_a, "plan_layout"_a,
-           "log_layout"_a, nb::keep_alive<1, 2>(),
+           "gravity"_a, "quantum"_a, "delay_cycles"_a, "velocity_alpha"_a, "hand_body"_a,
+           "plan_layout"_a, "log_layout"_a, nb::keep_alive<1, 2>(),
            "model, data: the addresses of an mjModel and its mjData (MjModel._address); the "
-           "caller keeps them alive. plan_layout, log_layout: {field: column}.")
+           "caller keeps them alive. hand_body: the hand's body id (-1: none), whose mass the "
+           "loop zeroes while the plan's hand_attached is 0. plan_layout, log_layout: "
+           "{field: column}.")
       .def_prop_ro("log_columns", [](const PyServoLoop& s) { return s.loop.log_layout().columns; })
+      .def_prop_ro("hand_attached", [](const PyServoLoop& s) { return s.loop.hand_attached(); })
       .def("run", &PyServoLoop::run, "k0"_a, "plan"_a, "noise"_a, "dropout"_a,
            "log"_a.noconvert(),
            "Runs plan.shape[0] control cycles from cycle k0, writing one log row each.");

@@ -47,7 +47,7 @@ TimerOff::~TimerOff() {
   }
 }
 
-ServoLoop::ServoLoop(Controller& controller, const mjModel* model, mjData* data,
+ServoLoop::ServoLoop(Controller& controller, mjModel* model, mjData* data,
                      LoopSettings settings, const PlanLayout& plan, const LogLayout& log)
     : ctrl_(controller), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
   require(model != nullptr && data != nullptr, "model, data: expected an mjModel and an mjData");
@@ -77,6 +77,13 @@ ServoLoop::ServoLoop(Controller& controller, const mjModel* model, mjData* data,
   }
   require(s_.delay_cycles >= 0, "delay_cycles: expected >= 0");
   require(s_.quantum >= 0.0, "quantum: expected >= 0");
+  require(s_.hand_body == -1 || (s_.hand_body > 0 && s_.hand_body < m_->nbody),
+          "hand_body: " + std::to_string(s_.hand_body) + " is not a body (nor -1: none)");
+  if (s_.hand_body > 0) {
+    hand_mass_ = m_->body_mass[s_.hand_body];
+    std::copy(m_->body_inertia + 3 * s_.hand_body, m_->body_inertia + 3 * s_.hand_body + 3,
+              hand_inertia_);
+  }
 
   const int P = plan_.columns;
   require(P > 0, "plan.columns: expected > 0");
@@ -89,7 +96,9 @@ ServoLoop::ServoLoop(Controller& controller, const mjModel* model, mjData* data,
   check_field("plan", "k_r", plan_.k_r, 1, P, false);
   check_field("plan", "b_r", plan_.b_r, 1, P, false);
   check_field("plan", "force", plan_.force, 3, P, false);
+  check_field("plan", "moment", plan_.moment, 3, P, false);
   check_field("plan", "force_in_handle", plan_.force_in_handle, 1, P, false);
+  check_field("plan", "hand_attached", plan_.hand_attached, 1, P, false);
   check_field("plan", "segment", plan_.segment, 1, P, false);
   const int L = log_.columns;
   require(L > 0, "log.columns: expected > 0");
@@ -137,6 +146,25 @@ ServoLoop::ServoLoop(Controller& controller, const mjModel* model, mjData* data,
   }
 }
 
+ServoLoop::~ServoLoop() {
+  if (!attached_) attach_hand(true);
+}
+
+// the hand's mass and inertia on (its own) or off (zero), and the model's constants that
+// follow from the masses (dof_M0, dof_invweight0, body_subtreemass, ...) recomputed, as a
+// model compiled with (without) the hand has them; mj_setConst works on scratch data
+void ServoLoop::attach_hand(bool attached) {
+  attached_ = attached;
+  const int b = s_.hand_body;
+  if (b <= 0) return;
+  m_->body_mass[b] = attached ? hand_mass_ : 0.0;
+  for (int i = 0; i < 3; ++i) m_->body_inertia[3 * b + i] = attached ? hand_inertia_[i] : 0.0;
+  if (mjData* scratch = mj_makeData(m_)) {
+    mj_setConst(m_, scratch);
+    mj_deleteData(scratch);
+  }
+}
+
 void ServoLoop::run(long k0, std::size_t rows, const double* plan, const double* noise,
                     const double* dropout, double* log) {
   TimerOff timer_off;
@@ -172,23 +200,28 @@ void ServoLoop::sense(const double* noise, bool dropout) {
   ++reads_;
 }
 
-// human.py, hand_wrench, at pose T and twist tw
+// human.py, hand_wrench, at pose T and twist tw, with the push (force; moment) in world axes
 Vector6 ServoLoop::hand_wrench(const double* p, const Pose& T, const Vector6& tw,
-                               const Eigen::Vector3d& force) const {
+                               const Vector6& push) const {
+  if (!attached_) return Vector6::Zero();  // released: no hand at all
   const Eigen::Map<const Eigen::Vector3d> pa(p + plan_.anchor_p), va(p + plan_.anchor_v),
       wa(p + plan_.anchor_w);
   const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> Ra(p + plan_.anchor_R);
   Vector6 W;
-  W.head<3>() = p[plan_.k_t] * (pa - T.translation()) + p[plan_.b_t] * (va - tw.head<3>()) + force;
+  W.head<3>() = p[plan_.k_t] * (pa - T.translation()) + p[plan_.b_t] * (va - tw.head<3>()) +
+                push.head<3>();
   const Eigen::Matrix3d Rerr = Ra * T.linear().transpose();
-  W.tail<3>() = p[plan_.k_r] * so3_log(Rerr) + p[plan_.b_r] * (wa - tw.tail<3>());
+  W.tail<3>() =
+      p[plan_.k_r] * so3_log(Rerr) + p[plan_.b_r] * (wa - tw.tail<3>()) + push.tail<3>();
   return W;
 }
 
 void ServoLoop::cycle(long k, const double* plan, const double* noise, bool dropout,
                       double* row) {
   const double t = double(k) * s_.period_s;
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  const bool attached = plan[plan_.hand_attached] != 0.0;
+  if (attached != attached_) attach_hand(attached);
+  Vector6 push = Vector6::Zero();
   Vector6 tw0 = Vector6::Zero(), wrench0 = Vector6::Zero();
   Pose T_h = Pose::Identity();
   for (int s = 0; s < s_.substeps; ++s) {
@@ -200,11 +233,15 @@ void ServoLoop::cycle(long k, const double* plan, const double* noise, bool drop
       q_cycle_ = q_;
       dq_cycle_ = dq_;
       control(t, noise, dropout);
-      force = Eigen::Map<const Eigen::Vector3d>(plan + plan_.force);
-      if (plan[plan_.force_in_handle] != 0.0) force = T_h.linear() * force;
+      push.head<3>() = Eigen::Map<const Eigen::Vector3d>(plan + plan_.force);
+      push.tail<3>() = Eigen::Map<const Eigen::Vector3d>(plan + plan_.moment);
+      if (plan[plan_.force_in_handle] != 0.0) {
+        push.head<3>() = T_h.linear() * push.head<3>();
+        push.tail<3>() = T_h.linear() * push.tail<3>();
+      }
     }
     const Vector6 tw = J_ * dq_;
-    const Vector6 W = hand_wrench(plan, pose_, tw, force);
+    const Vector6 W = hand_wrench(plan, pose_, tw, push);
     if (s == 0) {
       tw0 = tw;
       wrench0 = W;

@@ -42,10 +42,10 @@ const char* kHingeXml = R"(
 struct Model {
   mjModel* m = nullptr;
   mjData* d = nullptr;
-  Model() {
+  explicit Model(const char* text = kHingeXml) {
     mjVFS vfs;
     mj_defaultVFS(&vfs);
-    const std::string xml(kHingeXml);
+    const std::string xml(text);
     EXPECT_EQ(mj_addBufferVFS(&vfs, "hinge.xml", xml.data(), int(xml.size())), 0);
     char err[1000] = "";
     m = mj_loadXML("hinge.xml", &vfs, err, sizeof(err));
@@ -86,6 +86,22 @@ LoopSettings settings() {
   return s;
 }
 
+// the same hinge with a hand body (mass at the handle) that the loop can release
+const char* kHandXml = R"(
+<mujoco>
+  <option timestep="0.00025" gravity="0 0 0"><flag contact="disable"/></option>
+  <worldbody>
+    <body>
+      <joint name="hinge" type="hinge" axis="0 0 1"/>
+      <inertial pos="0.1 0 0" mass="0.2" diaginertia="1e-4 1e-4 1e-4"/>
+      <body name="hand" pos="0.1 0 0">
+        <inertial pos="0 0 0" mass="0.3" diaginertia="2e-4 2e-4 2e-4"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator><motor joint="hinge" gear="0"/></actuator>
+</mujoco>)";
+
 // this test's own column order (the loop takes any): the plan permuted, a short log
 PlanLayout plan_layout() {
   PlanLayout p;
@@ -100,7 +116,9 @@ PlanLayout plan_layout() {
   p.anchor_v = 12;
   p.anchor_R = 15;
   p.anchor_p = 24;
-  p.columns = 27;
+  p.moment = 27;
+  p.hand_attached = 30;
+  p.columns = 31;
   return p;
 }
 
@@ -130,6 +148,7 @@ std::vector<double> plan_rows(int rows, const Eigen::Vector3d& p_a, double k_t, 
     }
     row[P.k_t] = k_t;
     row[P.b_t] = b_t;
+    row[P.hand_attached] = 1.0;
   }
   return plan;
 }
@@ -140,8 +159,11 @@ struct LoopLog {
   double at(int row, int col) const { return log[size_t(row * columns + col)]; }
 };
 
-LoopLog run(Model& model, Controller& ctrl, int rows, const std::vector<double>& plan) {
-  ServoLoop loop(ctrl, model.m, model.d, settings(), plan_layout(), log_layout());
+LoopLog run(Model& model, Controller& ctrl, int rows, const std::vector<double>& plan,
+            int hand_body = -1) {
+  LoopSettings s = settings();
+  s.hand_body = hand_body;
+  ServoLoop loop(ctrl, model.m, model.d, s, plan_layout(), log_layout());
   LoopLog r{std::vector<double>(size_t(rows * log_layout().columns), 0.0), log_layout().columns};
   std::vector<double> noise(size_t(rows), 0.0), dropout(size_t(rows), 0.0);
   loop.run(0, size_t(rows), plan.data(), noise.data(), dropout.data(), r.log.data());
@@ -169,6 +191,65 @@ TEST(SimLoop, APushOnAFreeHingeGivesTheClosedFormAngularAcceleration) {
   EXPECT_NEAR(r.at(k, 1), 0.5 * alpha * kDt * kDt * steps * (steps + 1), 1e-4 * r.at(k, 1));
   EXPECT_DOUBLE_EQ(r.at(k, 7), F);  // the hand's force, logged
   EXPECT_GT(r.at(k, 1), 1e-4);      // it moved
+}
+
+// A pure moment M about the hinge's axis at the handle: the angular acceleration M / I, and
+// the hand's logged wrench has no force.
+TEST(SimLoop, APureMomentGivesTheClosedFormAngularAccelerationAndNoForce) {
+  Model model;
+  auto ctrl = controller();
+  const double M = 2e-3;
+  const int rows = 21;
+  std::vector<double> plan =
+      plan_rows(rows, Eigen::Vector3d::Zero(), 0.0, 0.0, Eigen::Vector3d::Zero());
+  const PlanLayout P = plan_layout();
+  for (int r = 0; r < rows; ++r) plan[size_t(r * P.columns + P.moment + 2)] = M;
+  const LoopLog r = run(model, *ctrl, rows, plan);
+  const double alpha = M / kI;
+  const int k = rows - 1;
+  const double t = r.at(k, 0);
+  EXPECT_NEAR(r.at(k, 2), alpha * t, 1e-9 * alpha * t);  // a moment: no cos q
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(r.at(k, 6 + i), 0.0);  // no force
+  EXPECT_DOUBLE_EQ(r.at(k, 11), M);
+}
+
+// Released (hand_attached = 0), the hand pushes nothing and its mass is gone: the push is
+// not felt; taking hold again, the push accelerates the link and the hand's mass together.
+TEST(SimLoop, AReleasedHandHasNoWrenchAndNoMassUntilItTakesHoldAgain) {
+  Model model(kHandXml);
+  const int hand = mj_name2id(model.m, mjOBJ_BODY, "hand");
+  ASSERT_GT(hand, 0);
+  auto ctrl = controller();
+  const double F = 0.05;
+  const int rows = 41;
+  std::vector<double> plan =
+      plan_rows(rows, Eigen::Vector3d::Zero(), 0.0, 0.0, Eigen::Vector3d(0.0, F, 0.0));
+  const PlanLayout P = plan_layout();
+  for (int r = 0; r < 20; ++r) plan[size_t(r * P.columns + P.hand_attached)] = 0.0;
+  LoopSettings s = settings();
+  s.hand_body = hand;
+  LoopLog r{std::vector<double>(size_t(rows * log_layout().columns), 0.0), log_layout().columns};
+  {
+    ServoLoop loop(*ctrl, model.m, model.d, s, plan_layout(), log_layout());
+    std::vector<double> noise(size_t(rows), 0.0), dropout(size_t(rows), 0.0);
+    loop.run(0, 20, plan.data(), noise.data(), dropout.data(), r.log.data());
+    EXPECT_FALSE(loop.hand_attached());
+    EXPECT_EQ(model.m->body_mass[hand], 0.0);
+    EXPECT_EQ(model.m->body_subtreemass[1], 0.2);  // mj_setConst: as without the hand
+    for (int k = 0; k < 20; ++k) {
+      EXPECT_EQ(r.at(k, 1), 0.0);  // nothing moved it
+      EXPECT_EQ(r.at(k, 7), 0.0);  // no hand wrench
+    }
+    loop.run(20, 21, plan.data() + 20 * P.columns, noise.data(), dropout.data(),
+             r.log.data() + 20 * r.columns);
+    EXPECT_TRUE(loop.hand_attached());
+    EXPECT_EQ(model.m->body_mass[hand], 0.3);
+  }
+  const double I = kI + 0.3 * kL * kL + 2e-4;  // link, hand mass at L, hand inertia
+  const double alpha = kL * F / I;
+  const double t = r.at(rows - 1, 0) - 0.02;  // pushed from 20 ms on
+  EXPECT_NEAR(r.at(rows - 1, 2), alpha * t, 1e-4 * alpha * t);
+  EXPECT_DOUBLE_EQ(r.at(rows - 1, 7), F);
 }
 
 // A spring-only hand (no damping anywhere): the handle oscillates about the anchor and
@@ -202,7 +283,7 @@ TEST(SimLoop, RefusesAModelThatIsNotTheDeviceAndALayoutOutsideTheRow) {
   EXPECT_THROW(ServoLoop(*ctrl, model.m, model.d, two, plan_layout(), log_layout()),
                std::invalid_argument);
   PlanLayout p = plan_layout();
-  p.anchor_p = 25;  // 3 entries from 25 in a row of 27
+  p.anchor_p = 29;  // 3 entries from 29 in a row of 31
   try {
     ServoLoop(*ctrl, model.m, model.d, settings(), p, log_layout());
     FAIL() << "expected std::invalid_argument";

@@ -16,7 +16,13 @@ mujoco = pytest.importorskip("mujoco")
 
 from virtmech.scenarios import load  # noqa: E402
 from virtmech.sim import inner  # noqa: E402
-from virtmech.sim.human import PLAN_COLUMNS, HandImpedance, Intent  # noqa: E402
+from virtmech.sim.human import (  # noqa: E402
+    PLAN_COLUMNS,
+    PLAN_INDEX,
+    HandImpedance,
+    Intent,
+    plan_slice,
+)
 from virtmech.sim.loop import log_columns, run  # noqa: E402
 
 # every sensor effect on, so the compiled sensor model is compared as well
@@ -114,11 +120,14 @@ def test_the_hand_plan_is_the_per_cycle_intent():
         np.testing.assert_allclose(r[12:15], tg.v, atol=1e-9)
         np.testing.assert_allclose(r[15:18], tg.w, atol=1e-9)
         assert (r[18], r[19], r[20], r[21]) == (tg.k_t, tg.b_t, tg.k_r, tg.b_r)
-        force = handle[k][:3, :3] @ r[22:25] if r[25] else r[22:25]
+        f, in_handle = r[plan_slice("fx", 3)], r[PLAN_INDEX["force_in_handle"]]
+        force = handle[k][:3, :3] @ f if in_handle else f
         np.testing.assert_allclose(force, tg.force, atol=1e-14)
-        assert r[26] == tg.segment
+        assert r[PLAN_INDEX["segment"]] == tg.segment
+        assert r[PLAN_INDEX["hand_attached"]] == 1.0 and not r[plan_slice("mx", 3)].any()
     # and the plan is not constant: every kind of segment moved something
-    assert np.ptp(rows[:, 0]) > 0.01 and np.ptp(rows[:, 15:18]) > 0.1 and rows[:, 25].any()
+    assert np.ptp(rows[:, 0]) > 0.01 and np.ptp(rows[:, 15:18]) > 0.1
+    assert rows[:, PLAN_INDEX["force_in_handle"]].any()
 
 
 def test_a_plan_across_a_segment_start_is_refused():

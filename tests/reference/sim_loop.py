@@ -26,11 +26,27 @@ class PyServoLoop:
         self.g, self.sensors = np.asarray(kw["gravity"], dtype=float), kw["sensors"]
         self.jacp = np.zeros((3, model.nv))
         self.col = {name: i for i, name in enumerate(log_columns)}
+        # the hand's body: its mass and inertia zeroed while the plan says it has let go
+        self.hand = int(kw.get("hand_body", -1))
+        self.attached = True
+        if self.hand > 0:
+            self.hand_mass = float(model.body_mass[self.hand])
+            self.hand_inertia = model.body_inertia[self.hand].copy()
+
+    def _attach(self, attached: bool) -> None:
+        self.attached = attached
+        if self.hand > 0:
+            self.m.body_mass[self.hand] = self.hand_mass if attached else 0.0
+            self.m.body_inertia[self.hand] = self.hand_inertia if attached else 0.0
+            mujoco.mj_setConst(self.m, mujoco.MjData(self.m))
 
     def run(self, k0: int, plan, noise, dropout, log) -> None:
         m, d, n, c = self.m, self.d, self.dev.dof, self.col
         for r, row in enumerate(plan):
             t = (k0 + r) * self.T
+            attached = row[PLAN_INDEX["hand_attached"]] != 0.0
+            if attached != self.attached:
+                self._attach(attached)
             for s in range(self.nsub):
                 mujoco.mj_step1(m, d)  # kinematics at the current state
                 q, dq = self.Cinv @ (d.qpos - self.c0), self.Cinv @ d.qvel
@@ -46,9 +62,9 @@ class PyServoLoop:
                         g_s += self.jacp.T @ (mass * self.g)
                     cmd[self.act] -= (self.CT @ g_s)[self.act]
                     d.ctrl[:] = cmd[self.act]
-                    force = row[plan_slice("fx", 3)]
+                    force, moment = row[plan_slice("fx", 3)], row[plan_slice("mx", 3)]
                     if row[PLAN_INDEX["force_in_handle"]] != 0.0:
-                        force = T_h[:3, :3] @ force
+                        force, moment = T_h[:3, :3] @ force, T_h[:3, :3] @ moment
                     target = HandTarget(
                         p=row[plan_slice("ax", 3)],
                         R=row[plan_slice("R00", 9)].reshape(3, 3),
@@ -57,6 +73,8 @@ class PyServoLoop:
                         **{k: row[PLAN_INDEX[k]] for k in ("k_t", "b_t", "k_r", "b_r")},
                         force=force,
                         segment=int(row[PLAN_INDEX["segment"]]),
+                        moment=moment,
+                        attached=attached,
                     )
                 tw = J @ dq
                 W = hand_wrench(target, T, tw)  # the hand, every physics step

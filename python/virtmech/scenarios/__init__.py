@@ -115,14 +115,78 @@ def _consistency_errors(d: dict) -> list[str]:
                 f"intent[{i}]: missing required field; expected exactly one of "
                 "'theta' (a path along the mechanism) or 'offsets' (waypoints [m])"
             )
+        errors += _intent_errors(i, seg, c["period_s"])
     q = d["initial"].get("q")
     if q is not None:
-        n = 6 if d["device"]["type"] == "PhantomOmni" else 3
+        dev = d["device"]
+        n = {"PhantomOmni": 6, "Planar3R": 3}.get(dev["type"]) or len(dev.get("joints", []))
         if len(q) != n:
             errors.append(
                 f"initial.q: expected {n} numbers (one per joint of "
                 f"{d['device']['type']}), got {len(q)} values"
             )
+    return errors
+
+
+def _intent_errors(i: int, seg: dict, period_s: float) -> list[str]:
+    """The checks between an intent segment's keys (its keys are each valid)."""
+    errors, at, action = [], f"intent[{i}]", seg["action"]
+    if action == "follow":
+        if seg["profile"] == "constant":
+            if "speed_m_s" not in seg:
+                errors.append(
+                    f"{at}.speed_m_s: missing required field; expected a number [m/s] > 0 "
+                    "with profile = 'constant'"
+                )
+            if "duration_s" in seg:
+                errors.append(
+                    f"{at}.duration_s: value {seg['duration_s']:g} not allowed with profile "
+                    "= 'constant'; expected no duration_s (it is the path length / speed_m_s "
+                    "+ ramp_s)"
+                )
+        else:
+            if "duration_s" not in seg:
+                errors.append(
+                    f"{at}.duration_s: missing required field (a number [s] >= 0; with "
+                    "profile = 'constant' and speed_m_s it follows from the path)"
+                )
+            if "speed_m_s" in seg:
+                errors.append(
+                    f"{at}.speed_m_s: value {seg['speed_m_s']:g} not allowed with profile = "
+                    f"{seg['profile']!r}; expected profile = 'constant' with it"
+                )
+    if action in ("sine", "chirp"):
+        if ("amplitude_m" in seg) == ("amplitude_deg" in seg):
+            errors.append(
+                f"{at}: expected exactly one of 'amplitude_m' (translation along axis [m]) or "
+                f"'amplitude_deg' (rotation about axis [deg]), got "
+                + ("both" if "amplitude_m" in seg else "neither")
+            )
+        if not seg["duration_s"] > 0:
+            errors.append(
+                f"{at}.duration_s: value {seg['duration_s']:g} is out of range; expected a "
+                f"number [s] > 0 for a {action}"
+            )
+        for amp, group, default in (("amplitude_m", "translation", "hold"),
+                                    ("amplitude_deg", "orientation", "hold")):  # fmt: skip
+            if amp in seg and seg.get(group, default) == "passive":
+                errors.append(
+                    f"{at}.{group}: value 'passive' not allowed with {amp}; expected 'hold' "
+                    f"(a passive {group} has no stiffness: the oscillation would not act)"
+                )
+        nyquist = 0.5 / period_s
+        for key in ("frequency_hz", "f0_hz", "f1_hz"):
+            if key in seg and seg[key] > nyquist:
+                errors.append(
+                    f"{at}.{key}: value {seg[key]:g} is out of range; expected at most "
+                    f"{nyquist:g} Hz (half the control rate, controller.period_s = "
+                    f"{period_s:g} s)"
+                )
+    if action == "wrench" and "force" not in seg and "moment" not in seg:
+        errors.append(
+            f"{at}: missing required field; expected 'force' (3 numbers [N]) and/or "
+            "'moment' (3 numbers [N m])"
+        )
     return errors
 
 

@@ -244,6 +244,15 @@ HUMAN = Field(
 )
 
 _MODE = ("passive", "hold")
+_PUSH = {
+    "force": opt_vec(3, "3 numbers [N]"),
+    "moment": opt_vec(3, "3 numbers [N m]"),
+    "force_frame": Field(
+        "string", default="world", choices=("world", "handle"),
+        doc="the axes of force and moment",
+    ),
+    "ramp_s": num(0.1, min=0, max=10, doc="a number [s] >= 0"),
+}
 _COMMON = {
     "start_s": num(required=True, min=0, doc="a number [s] >= 0"),
     "duration_s": num(required=True, min=0, doc="a number [s] >= 0"),
@@ -251,11 +260,18 @@ _COMMON = {
     "orientation": Field("string", choices=_MODE + ("path",)),
     "stiffness": num(min=0, max=5000),
     "rot_stiffness": num(min=0, max=100),
-    "force": opt_vec(3, "3 numbers [N]"),
-    "force_frame": Field("string", default="world", choices=("world", "handle")),
-    "ramp_s": num(0.1, min=0, max=10),
+    **_PUSH,
 }
 _AXIS = Field("axis", default="normal", choices=("normal", "stylus"))
+_OSCILLATION = {
+    **_COMMON,
+    "axis": _AXIS,
+    "amplitude_m": num(min=0, max=1, doc="a number [m] >= 0 (translation along axis)"),
+    "amplitude_deg": num(min=-360, max=360, doc="a number [deg] (rotation about axis)"),
+}
+#: a sine's or chirp's highest frequency [Hz] (the control rate's Nyquist frequency is
+#: checked against controller.period_s when the file is read)
+_FREQ = {"min": 0, "max": 1e4}
 INTENT = Field(
     "tables",
     default=[],
@@ -264,8 +280,15 @@ INTENT = Field(
         "hold": dict(_COMMON),
         "follow": {
             **_COMMON,
+            # required with profile = "min_jerk", not allowed with "constant" (checked with
+            # the profile when the file is read)
+            "duration_s": num(min=0, doc="a number [s] >= 0"),
             "theta": Field("vector", length=2),
             "offsets": Field("vector", min_length=1, element=Field("vector", length=3)),
+            "profile": Field("string", default="min_jerk", choices=("min_jerk", "constant")),
+            "speed_m_s": num(
+                min=0, min_exclusive=True, max=10, doc="a number [m/s] > 0 (profile constant)"
+            ),
         },
         "twist": {
             **_COMMON,
@@ -278,6 +301,22 @@ INTENT = Field(
             "axis": _AXIS,
         },
         "push": {**_COMMON, "force": vec(3, required=True, doc="3 numbers [N]")},
+        "sine": {
+            **_OSCILLATION,
+            "frequency_hz": num(required=True, min_exclusive=True, doc="a number [Hz] > 0",
+                                **_FREQ),
+        },
+        "chirp": {
+            **_OSCILLATION,
+            "f0_hz": num(required=True, doc="a number [Hz] >= 0", **_FREQ),
+            "f1_hz": num(required=True, doc="a number [Hz] >= 0", **_FREQ),
+        },
+        "wrench": {
+            "start_s": num(required=True, min=0, doc="a number [s] >= 0"),
+            "duration_s": num(required=True, min=0, doc="a number [s] >= 0"),
+            **_PUSH,
+        },
+        "release": {"start_s": num(required=True, min=0, doc="a number [s] >= 0")},
     },
 )
 

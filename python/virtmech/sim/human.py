@@ -13,11 +13,16 @@ Model (one choice among those the issue allows, documented in docs/simulation.md
   with p, R, v, w the handle's pose and twist (from the core's kinematics at the true joint
   values). A *passive* axis group has k = 0 and damps against the world (v_a = 0): the
   relaxed hand that lets the robot move it.
-- The **intent** is a list of segments (hold; follow a path; twist the handle; push with a
-  force; resist = hold the position stiffly while twisting). Any segment may also push
-  with a force (world or handle axes), ramped in and out over `ramp_s`. Each segment starts from
-  where the previous left the anchor (or from the handle, where the previous segment left
-  that axis group passive) and moves it with a minimum-jerk time scaling.
+- The **intent** is a list of segments (hold; follow a path, with a minimum-jerk or a
+  constant-speed profile; twist the handle; push with a force; resist = hold the position
+  stiffly while twisting; sine and chirp oscillations of the anchor; a pure wrench with no
+  impedance; release = no hand at all). Any segment but release may also push with a force
+  and a moment (world or handle axes), ramped in and out over `ramp_s`. Each segment starts
+  from where the previous left the anchor (or from the handle, where the previous segment
+  left that axis group passive, pushed a pure wrench or let go).
+- **Release**: the plan's `hand_attached` column is 0; the loop then applies no hand wrench
+  and zeroes the hand body's mass and inertia in the model (servo_loop.hpp), so the handle
+  moves as on a model built without the hand; a later segment takes hold again.
 """
 
 from __future__ import annotations
@@ -59,6 +64,114 @@ def min_jerk_array(x: np.ndarray) -> np.ndarray:
     return x * x * x * (10.0 - 15.0 * x + 6.0 * x * x)
 
 
+def min_jerk_rate(x: np.ndarray) -> np.ndarray:
+    """d min_jerk / dx of every element of x (0 outside [0, 1])."""
+    x = np.asarray(x, dtype=float)
+    inside = (x >= 0.0) & (x <= 1.0)
+    return np.where(inside, 30.0 * x * x * (1.0 - x) ** 2, 0.0)
+
+
+def min_jerk_integral(x: np.ndarray) -> np.ndarray:
+    """The integral of min_jerk from 0 to x, for x in [0, 1] (clipped): x^4 (5/2 - 3 x + x^2);
+    1/2 at x = 1."""
+    x = np.clip(np.asarray(x, dtype=float), 0.0, 1.0)
+    return x**4 * (2.5 - 3.0 * x + x * x)
+
+
+def ramp_envelope(tau: np.ndarray, duration: float, ramp: float):
+    """(g, dg/dtau): 0 before tau = 0 and after `duration` (none: never ends), ramped up
+    and down with min_jerk over `ramp` [s], 1 in between."""
+    tau = np.asarray(tau, dtype=float)
+    end = duration if duration > 0 else math.inf
+    tout = end - tau
+    if ramp > 0:
+        gi, go = min_jerk_array(tau / ramp), min_jerk_array(tout / ramp)
+        di, do = min_jerk_rate(tau / ramp) / ramp, -min_jerk_rate(tout / ramp) / ramp
+        g = np.minimum(gi, go)
+        dg = np.where(gi <= go, di, do)
+    else:
+        g, dg = np.ones_like(tau), np.zeros_like(tau)
+    inside = (tau >= 0) & (tout >= 0)
+    return np.where(inside, g, 0.0), np.where(inside, dg, 0.0)
+
+
+def constant_speed_distance(tau: np.ndarray, length: float, speed: float, ramp: float):
+    """(distance, speed) along a path of `length` [m] at time tau [s] of a constant-speed
+    segment: the speed rises from 0 to `speed` over `ramp` with a min_jerk profile, holds,
+    and falls back to 0 at the end, which is at length / speed + ramp (each ramp covers
+    speed * ramp / 2)."""
+    tau = np.asarray(tau, dtype=float)
+    D = length / speed + ramp
+    if ramp > 0:
+        d_in = speed * ramp * min_jerk_integral(tau / ramp)
+        d_out = length - speed * ramp * min_jerk_integral((D - tau) / ramp)
+        cruise = speed * ramp / 2.0 + speed * (tau - ramp)
+        d = np.where(tau < ramp, d_in, np.where(tau > D - ramp, d_out, cruise))
+        v = speed * np.minimum(min_jerk_array(tau / ramp), min_jerk_array((D - tau) / ramp))
+    else:
+        d, v = speed * tau, np.full(tau.shape, speed)
+    d = np.where(tau <= 0, 0.0, np.where(tau >= D, length, d))
+    v = np.where((tau <= 0) | (tau >= D), 0.0, v)
+    return d, v
+
+
+class ArcLength:
+    """Arc length along a one-joint mechanism's path theta in [a, b] and its inverse: the
+    path's speed |dp/dtheta| (five-point central differences) on a grid of 2049 values of
+    theta, integrated with Simpson's rule; theta(s) by cubic Hermite interpolation with the
+    slopes 1 / |dp/dtheta| (exact where |dp/dtheta| is constant, e.g. a PlanarArm's circle;
+    elsewhere the grid's accuracy, about h^4 with h = (b - a) / 2048)."""
+
+    NODES = 2049  # odd: Simpson pairs
+
+    def __init__(self, mechanism, a: float, b: float):
+        self.mechanism, self.a, self.b = mechanism, float(a), float(b)
+        self.sign = 1.0 if b >= a else -1.0
+        th = np.linspace(self.a, self.b, self.NODES)
+        self.theta = th
+        self.rate = np.linalg.norm(self.dp(th), axis=1)  # |dp/dtheta|
+        h = (self.b - self.a) / (self.NODES - 1)
+        # cumulative Simpson over pairs of intervals; the node between, by the integral of
+        # the quadratic through the pair over its first half
+        r = self.rate
+        s = np.zeros(self.NODES)
+        for_pairs = abs(h) / 3.0 * (r[0:-2:2] + 4.0 * r[1:-1:2] + r[2::2])
+        s[2::2] = np.cumsum(for_pairs)
+        s[1::2] = s[0:-2:2] + abs(h) / 12.0 * (5.0 * r[0:-2:2] + 8.0 * r[1:-1:2] - r[2::2])
+        self.s = s
+        self.length = float(s[-1])
+
+    def dp(self, th: np.ndarray) -> np.ndarray:
+        """dp/dtheta (m, 3) of the path's position at each theta: five-point central
+        differences (truncation h^4, rounding 1e-16 / h; h = 1e-3 gives about 1e-13 relative
+        on a circle)."""
+        h = 1e-3
+        th = np.asarray(th, dtype=float)
+
+        def p(x):
+            return self.mechanism.forward_many(x[:, None])[:, :3, 3]
+
+        return (p(th - 2 * h) - 8.0 * p(th - h) + 8.0 * p(th + h) - p(th + 2 * h)) / (12.0 * h)
+
+    def theta_at(self, d: np.ndarray) -> np.ndarray:
+        """theta at arc length d in [0, length] from a."""
+        d = np.clip(np.asarray(d, dtype=float), 0.0, self.length)
+        s, th = self.s, self.theta
+        i = np.clip(np.searchsorted(s, d, side="right") - 1, 0, len(s) - 2)
+        ds = s[i + 1] - s[i]
+        safe = np.where(ds > 0, ds, 1.0)
+        u = np.where(ds > 0, (d - s[i]) / safe, 0.0)
+        m0 = self.sign / np.maximum(self.rate[i], 1e-300) * ds
+        m1 = self.sign / np.maximum(self.rate[i + 1], 1e-300) * ds
+        u2, u3 = u * u, u * u * u
+        return (
+            (2 * u3 - 3 * u2 + 1) * th[i]
+            + (u3 - 2 * u2 + u) * m0
+            + (-2 * u3 + 3 * u2) * th[i + 1]
+            + (u3 - u2) * m1
+        )
+
+
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return vm.so3_exp(np.asarray(axis, dtype=float) * angle)
 
@@ -93,8 +206,11 @@ PLAN_COLUMNS = (
     ["ax", "ay", "az"]
     + [f"R{i}{j}" for i in range(3) for j in range(3)]
     + ["vx", "vy", "vz", "wx", "wy", "wz", "k_t", "b_t", "k_r", "b_r"]
-    + ["fx", "fy", "fz", "force_in_handle", "segment"]
+    + ["fx", "fy", "fz", "mx", "my", "mz", "force_in_handle", "hand_attached", "segment"]
 )
+#: actions that Intent.plan plans and the per-cycle Intent.update does not
+PLAN_ONLY = ("wrench", "release", "sine", "chirp")
+
 #: column of each name in PLAN_COLUMNS
 PLAN_INDEX = {name: i for i, name in enumerate(PLAN_COLUMNS)}
 
@@ -119,15 +235,23 @@ class HandTarget:
     b_r: float
     force: np.ndarray
     segment: int
+    moment: np.ndarray | None = None  #: pushed moment [N·m], world axes (None: zero)
+    attached: bool = True  #: False: the hand has let go (no wrench at all)
 
 
 class Intent:
-    """The intent timeline: call `update(t, T_handle)` once per control cycle, in order."""
+    """The intent timeline: `plan(k0, k1, T_handle)` over consecutive stretches of cycles
+    (see `start_cycles`), or the older `update(t, T_handle)` once per control cycle, in order
+    (the original actions only). Segments are the [[intent]] tables as dicts; a mistake that
+    needs the mechanism raises a ValueError naming `intent[i].key` (i: the segment's place
+    in `segments`)."""
 
     def __init__(
         self, segments: list[dict], hand: HandImpedance, mechanism, T0: np.ndarray, period_s: float
     ):
-        self.segments = sorted(segments, key=lambda s: s["start_s"])
+        order = sorted(range(len(segments)), key=lambda i: segments[i]["start_s"])
+        self.segments = [segments[i] for i in order]
+        self._given = order  # each (sorted) segment's index in `segments`
         self.hand = hand
         self.mechanism = mechanism
         self.T = period_s
@@ -142,6 +266,46 @@ class Intent:
         self._start_R = self.R_a.copy()
         self._prev_p: np.ndarray | None = None
         self._prev_R: np.ndarray | None = None
+        self.damped = True  # False: a pure wrench (no damping either)
+        self.attached = True  # False: released
+        # each segment's duration [s]: a constant-speed follow's from its path and speed
+        self._arcs: dict[int, ArcLength] = {}
+        for i, seg in enumerate(self.segments):
+            if seg["action"] == "follow" and "theta" in seg and mechanism.dof != 1:
+                raise ValueError(
+                    f"intent[{self._given[i]}].theta: expected a one-joint mechanism (theta = "
+                    f"[a, b] are its joint values), got {type(mechanism).__name__} with "
+                    f"{mechanism.dof} joints; give the path as offsets instead"
+                )
+        self.durations = [self._duration(i, seg) for i, seg in enumerate(self.segments)]
+
+    def _path_length(self, i: int, seg: dict) -> float:
+        if "theta" in seg:
+            if i not in self._arcs:
+                a, b = (float(x) for x in seg["theta"])
+                self._arcs[i] = ArcLength(self.mechanism, a, b)
+            return self._arcs[i].length
+        pts = np.vstack([np.zeros(3), np.asarray(seg["offsets"], dtype=float)])
+        return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+    def _duration(self, i: int, seg: dict) -> float:
+        """The segment's duration [s] (0: none): duration_s, or for a constant-speed follow
+        its path length / speed_m_s + ramp_s."""
+        if seg["action"] == "follow" and seg.get("profile", "min_jerk") == "constant":
+            L, V, r = self._path_length(i, seg), float(seg["speed_m_s"]), seg.get("ramp_s", 0.1)
+            if not L > 0.0:
+                raise ValueError(
+                    f"intent[{self._given[i]}].speed_m_s: a constant-speed follow needs a path "
+                    f"of non-zero length; its path is {L:g} m long"
+                )
+            if L < V * r:
+                raise ValueError(
+                    f"intent[{self._given[i]}].speed_m_s: value {V:g} is out of range; expected "
+                    f"at most path length / ramp_s = {L:.6g} m / {r:g} s = {L / r:.6g} m/s "
+                    f"(the ramps in and out cover speed * ramp_s of the {L:.6g} m path)"
+                )
+            return L / V + r
+        return float(seg.get("duration_s", 0.0))
 
     # the plane normal of the mechanism (axis "normal")
     def _normal(self) -> np.ndarray:
@@ -164,10 +328,23 @@ class Intent:
         # a segment starts from the anchor, or from the handle where the hand was passive
         self._start_p = T_handle[:3, 3].copy() if self.trans_passive else self.p_a.copy()
         self._start_R = T_handle[:3, :3].copy() if self.rot_passive else self.R_a.copy()
+        # taken from the handle: the anchor's rate starts from 0, not from the jump between
+        # where the anchor was left and the handle
+        if self.trans_passive and self._prev_p is not None:
+            self._prev_p = self._start_p.copy()
+        if self.rot_passive and self._prev_R is not None:
+            self._prev_R = self._start_R.copy()
         action = seg["action"]
         default_t = "passive" if action in ("twist",) else "hold"
         self.trans_passive = seg.get("translation", default_t) == "passive"
         self.rot_passive = seg.get("orientation", "hold") == "passive"
+        # a pure wrench and a released hand: no impedance at all (and the next segment
+        # starts from the handle)
+        free = action in ("wrench", "release")
+        if free:
+            self.trans_passive = self.rot_passive = True
+        self.damped = not free
+        self.attached = action != "release"
         self.k_t = seg.get("stiffness", self.hand.stiffness)
         self.k_r = seg.get("rot_stiffness", self.hand.rot_stiffness)
         self._axis_vec = self._axis(seg, T_handle)
@@ -217,38 +394,49 @@ class Intent:
         P = np.empty((m, len(PLAN_COLUMNS)))
         p = np.broadcast_to(self.p_a, (m, 3)).copy()
         R = np.broadcast_to(self.R_a, (m, 3, 3)).copy()
-        force = np.zeros((m, 3))
+        force, moment = np.zeros((m, 3)), np.zeros((m, 3))
         in_handle = 0.0
+        v_exact = w_exact = None  # anchor rates in closed form, where the action has them
         if self.active >= 0:
             seg = self.segments[self.active]
-            dur = seg.get("duration_s", 0.0)
-            s = min_jerk_array((t - seg["start_s"]) / dur) if dur > 0 else np.ones(m)
+            dur = self.durations[self.active]
+            tau = t - seg["start_s"]
+            s = min_jerk_array(tau / dur) if dur > 0 else np.ones(m)
             action = seg["action"]
             p[:], R[:] = self._start_p, self._start_R
             if action == "follow":
-                p, R = self._follow_batch(seg, s)
+                if seg.get("profile", "min_jerk") == "constant":
+                    p, R, v_exact = self._follow_constant(seg, tau)
+                else:
+                    p, R = self._follow_batch(seg, s)
             elif action in ("twist", "resist"):
                 R = rotations(self._axis_vec, np.radians(seg["angle_deg"]) * s) @ self._start_R
-            if "force" in seg:
-                ramp = seg.get("ramp_s", 0.1)
-                tin = t - seg["start_s"]
-                tout = seg["start_s"] + dur - t if dur > 0 else np.full(m, math.inf)
-                if ramp > 0:
-                    g = np.minimum(min_jerk_array(tin / ramp), min_jerk_array(tout / ramp))
+            elif action in ("sine", "chirp"):
+                x, dx = self._oscillation(seg, tau, dur)
+                n = self._axis_vec
+                if "amplitude_m" in seg:
+                    p = self._start_p[None, :] + x[:, None] * n[None, :]
+                    v_exact = dx[:, None] * n[None, :]
                 else:
-                    g = np.ones(m)
-                g = np.where((tin >= 0) & (tout >= 0), g, 0.0)
-                force = g[:, None] * np.asarray(seg["force"], dtype=float)[None, :]
+                    R = rotations(n, x) @ self._start_R
+                    w_exact = dx[:, None] * n[None, :]
+            if "force" in seg or "moment" in seg:
+                g, _ = ramp_envelope(tau, dur, seg.get("ramp_s", 0.1))
+                if "force" in seg:
+                    force = g[:, None] * np.asarray(seg["force"], dtype=float)[None, :]
+                if "moment" in seg:
+                    moment = g[:, None] * np.asarray(seg["moment"], dtype=float)[None, :]
                 in_handle = 1.0 if seg.get("force_frame", "world") == "handle" else 0.0
-        # anchor rates: differences with the previous cycle's anchor (0 on the very first)
+        # anchor rates: differences with the previous cycle's anchor (0 on the very first),
+        # or the closed form
         if self._prev_p is None:
             pp = np.vstack([p[:1], p[:-1]])
             Rp = np.concatenate([R[:1], R[:-1]])
         else:
             pp = np.vstack([self._prev_p[None], p[:-1]])
             Rp = np.concatenate([self._prev_R[None], R[:-1]])
-        v = (p - pp) / self.T
-        w = so3_log_batch(R @ np.transpose(Rp, (0, 2, 1))) / self.T
+        v = (p - pp) / self.T if v_exact is None else v_exact
+        w = so3_log_batch(R @ np.transpose(Rp, (0, 2, 1))) / self.T if w_exact is None else w_exact
         self.p_a, self.R_a = p[-1].copy(), R[-1].copy()
         self._prev_p, self._prev_R = p[-1].copy(), R[-1].copy()
         h, c = self.hand, PLAN_INDEX
@@ -257,13 +445,76 @@ class Intent:
         P[:, plan_slice("vx", 3)] = 0.0 if self.trans_passive else v
         P[:, plan_slice("wx", 3)] = 0.0 if self.rot_passive else w
         P[:, c["k_t"]] = 0.0 if self.trans_passive else float(self.k_t)
-        P[:, c["b_t"]] = h.damping
+        P[:, c["b_t"]] = h.damping if self.damped else 0.0
         P[:, c["k_r"]] = 0.0 if self.rot_passive else float(self.k_r)
-        P[:, c["b_r"]] = h.rot_damping
+        P[:, c["b_r"]] = h.rot_damping if self.damped else 0.0
         P[:, plan_slice("fx", 3)] = force
+        P[:, plan_slice("mx", 3)] = moment
         P[:, c["force_in_handle"]] = in_handle
+        P[:, c["hand_attached"]] = 1.0 if self.attached else 0.0
         P[:, c["segment"]] = self.active
         return P
+
+    def _oscillation(self, seg: dict, tau: np.ndarray, dur: float):
+        """(x, dx/dt) of a sine or chirp segment at its times tau: the displacement [m] or
+        angle [rad] about the start, amplitude ramped in and out over ramp_s."""
+        g, dg = ramp_envelope(tau, dur, seg.get("ramp_s", 0.1))
+        if seg["action"] == "sine":
+            f = float(seg["frequency_hz"])
+            phase, rate = 2.0 * math.pi * f * tau, np.full(tau.shape, 2.0 * math.pi * f)
+        else:  # linear chirp from f0 to f1 over the duration
+            f0, f1 = float(seg["f0_hz"]), float(seg["f1_hz"])
+            k = (f1 - f0) / dur
+            phase = 2.0 * math.pi * (f0 * tau + 0.5 * k * tau * tau)
+            rate = 2.0 * math.pi * (f0 + k * tau)
+        if "amplitude_m" in seg:
+            a = float(seg["amplitude_m"])
+        else:
+            a = math.radians(seg["amplitude_deg"])
+        sn, cs = np.sin(phase), np.cos(phase)
+        return a * g * sn, a * (dg * sn + g * rate * cs)
+
+    def _follow_constant(self, seg: dict, tau: np.ndarray):
+        """Anchor (p, R) and its exact velocity along the path at constant speed (ramped)."""
+        i = self.active
+        L = self._path_length(i, seg)
+        d, speed = constant_speed_distance(tau, L, float(seg["speed_m_s"]), seg.get("ramp_s", 0.1))
+        m = len(tau)
+        if "theta" in seg:
+            arc = self._arcs[i]
+            th = arc.theta_at(d)
+            p, R = self._follow_theta(seg, th)
+            # the unit tangent the way the anchor goes (theta may decrease along the path)
+            tangent = arc.sign * arc.dp(th)
+            tangent /= np.maximum(np.linalg.norm(tangent, axis=1), 1e-300)[:, None]
+        else:
+            p, R = self._follow_batch(seg, d / L)
+            pts = np.vstack([np.zeros(3), np.asarray(seg["offsets"], dtype=float)])
+            seglen = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+            cum = np.cumsum(seglen)
+            k = np.minimum(np.searchsorted(cum, d, side="right"), len(seglen) - 1)
+            # the piece the anchor is on (a zero-length piece is never on: skip ahead)
+            dirs = np.diff(pts, axis=0) / np.where(seglen > 0, seglen, 1.0)[:, None]
+            tangent = dirs[k]
+            for j in np.flatnonzero(seglen[k] == 0):
+                nz = np.flatnonzero(seglen[k[j]:] > 0)
+                tangent[j] = dirs[k[j] + nz[0]] if len(nz) else 0.0
+        v = speed[:, None] * tangent
+        assert v.shape == (m, 3)
+        return p, R, v
+
+    def _follow_theta(self, seg: dict, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Anchor along the mechanism's path at its joint values th (the path moved to start
+        at the segment's start)."""
+        m = len(th)
+        p = np.broadcast_to(self._start_p, (m, 3)).copy()
+        R = np.broadcast_to(self._start_R, (m, 3, 3)).copy()
+        T0 = self._path0
+        Ts = self.mechanism.forward_many(np.asarray(th, dtype=float)[:, None])
+        p += Ts[:, :3, 3] - T0[:3, 3]
+        if seg.get("orientation", "hold") == "path":
+            R = Ts[:, :3, :3] @ (T0[:3, :3].T @ self._start_R)
+        return p, R
 
     def _follow_batch(self, seg: dict, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         m = len(s)
@@ -271,11 +522,7 @@ class Intent:
         R = np.broadcast_to(self._start_R, (m, 3, 3)).copy()
         if "theta" in seg:
             a, b = seg["theta"]
-            T0 = self._path0
-            Ts = self.mechanism.forward_many((a + s * (b - a))[:, None])
-            p += Ts[:, :3, 3] - T0[:3, 3]
-            if seg.get("orientation", "hold") == "path":
-                R = Ts[:, :3, :3] @ (T0[:3, :3].T @ self._start_R)
+            return self._follow_theta(seg, a + s * (b - a))
         else:
             pts = np.vstack([np.zeros(3), np.asarray(seg["offsets"], dtype=float)])
             seglen = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -301,6 +548,15 @@ class Intent:
         force = np.zeros(3)
         if self.active >= 0:
             seg = self.segments[self.active]
+            if (
+                seg["action"] in PLAN_ONLY
+                or "moment" in seg
+                or seg.get("profile", "min_jerk") != "min_jerk"
+            ):
+                raise ValueError(
+                    f"Intent.update: intent[{self._given[self.active]}] (action "
+                    f"{seg['action']!r}) is planned by Intent.plan only"
+                )
             dur = seg.get("duration_s", 0.0)
             s = min_jerk((t - seg["start_s"]) / dur) if dur > 0 else 1.0
             action = seg["action"]
@@ -346,7 +602,12 @@ class Intent:
 
 
 def hand_wrench(target: HandTarget, T: np.ndarray, twist: np.ndarray) -> np.ndarray:
-    """The wrench (6,) [N; N·m] the hand applies at the handle origin, world axes."""
+    """The wrench (6,) [N; N·m] the hand applies at the handle origin, world axes (zero
+    when the hand has let go)."""
+    if not target.attached:
+        return np.zeros(6)
     F = target.k_t * (target.p - T[:3, 3]) + target.b_t * (target.v - twist[:3]) + target.force
     M = target.k_r * vm.so3_log(target.R @ T[:3, :3].T) + target.b_r * (target.w - twist[3:])
+    if target.moment is not None:
+        M = M + target.moment
     return np.concatenate([F, M])

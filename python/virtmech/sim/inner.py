@@ -31,7 +31,9 @@ PLAN_FIELDS = {
     "k_r": "k_r",
     "b_r": "b_r",
     "force": "fx",
+    "moment": "mx",
     "force_in_handle": "force_in_handle",
+    "hand_attached": "hand_attached",
     "segment": "segment",
 }
 
@@ -117,6 +119,7 @@ class ServoLoop:
             float(kw["sensors"].step),
             int(kw["sensors"].s.delay_cycles),
             float(kw["sensors"].alpha),
+            int(kw.get("hand_body", -1)),
             layout(PLAN_FIELDS, list(PLAN_COLUMNS)),
             layout(LOG_FIELDS, list(log_columns)),
         )
@@ -124,6 +127,11 @@ class ServoLoop:
     def run(self, k0: int, plan, noise, dropout, log) -> None:
         """Cycles k0 .. k0 + len(plan) - 1; log: a C-contiguous float64 (rows, columns)."""
         self._loop.run(k0, plan, noise, dropout, log)
+
+    @property
+    def hand_attached(self) -> bool:
+        """False while the hand has let go (its body's mass zeroed in the model)."""
+        return bool(self._loop.hand_attached)
 
 
 __all__ = ["LOG_FIELDS", "PLAN_FIELDS", "ServoLoop", "layout"]

@@ -535,7 +535,7 @@ def _built(scenario, table: str, build: Callable[[], Any]) -> Any:
         msg = str(e)
         head, sep, rest = msg.partition(": ")
         head = head.strip()
-        if sep and (head == table or head.startswith(table + ".")):
+        if sep and (head == table or head.startswith((table + ".", table + "["))):
             key, msg = head, rest
         elif sep and re.fullmatch(r"[A-Za-z_]\w*(\[\d+\])?", head):
             key, msg = f"{table}.{head}", rest
@@ -622,7 +622,9 @@ def run(
         mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in built.device_bodies
     ]
 
-    intent = Intent(S["intent"], human, mech, device.forward(q0), T_ctrl)
+    intent = _built(
+        scenario, "intent", lambda: Intent(S["intent"], human, mech, device.forward(q0), T_ctrl)
+    )
     planar = PlanarGeometry(mech) if S["mechanism"]["type"] == "PlanarArm" else None
 
     columns = log_columns(n, m)
@@ -651,6 +653,7 @@ def run(
         comp_masses=[float(model.body_mass[b]) for b in comp],
         gravity=g_world,
         sensors=sensors,
+        hand_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "hand"),
         log_columns=columns,
     )
     post = _PostColumns(columns, mech.to_dict(), planar, contacts)

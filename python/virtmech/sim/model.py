@@ -89,10 +89,16 @@ class DeviceModel:
 
 @dataclass
 class HandBody:
-    """The hand's mass and rotational inertia, rigidly on the handle (see human.py)."""
+    """The hand's mass and rotational inertia, rigidly on the handle (see human.py). Both
+    zero: no hand body at all (a model built without the hand, e.g. to compare a released
+    hand with)."""
 
     mass_kg: float = 0.2
     inertia: float = 2.0e-4  # [kg·m²], isotropic about the handle origin
+
+    @property
+    def present(self) -> bool:
+        return not (self.mass_kg == 0.0 and self.inertia == 0.0)
 
 
 @dataclass
@@ -287,9 +293,10 @@ def build_mjcf(
             site = body.add_site(name="handle", size=[0.004, 0.004, 0.004])
             _place(site, H)
             # the hand: rigid on the handle, weight carried by the user's arm (gravcomp)
-            hb = body.add_body(name="hand", gravcomp=1.0)
-            _place(hb, H)
-            _inertial(hb, hand.mass_kg, np.zeros(3), np.full(3, hand.inertia))
+            if hand.present:
+                hb = body.add_body(name="hand", gravcomp=1.0)
+                _place(hb, H)
+                _inertial(hb, hand.mass_kg, np.zeros(3), np.full(3, hand.inertia))
         parent = body
 
     # device joints that are not chain joints: fixed tendons; motors on the actuated ones

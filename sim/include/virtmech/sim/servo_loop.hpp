@@ -12,6 +12,11 @@
 //     qfrc_applied <- Cinv^T J^T w_hand(plan row, handle pose and twist)
 //     mj_step2                                  (actuation, dynamics, integration)
 //
+// Before the cycle's first step, where the plan row's hand_attached changes, the hand body's
+// mass and inertia are set to zero (released: no hand at all, and no hand wrench) or back to
+// the model's, and the model's constants that follow from the masses are recomputed
+// (mj_setConst): the physics is then that of a model built without (or with) the hand.
+//
 // mj_step1 followed by mj_step2 is mj_step, with the inputs set in between. The hand's plan
 // (anchor, gains, push), the sensor noise and the dropouts are given, one row per cycle.
 //
@@ -31,12 +36,13 @@ namespace virtmech::sim {
 
 /// Column of each field of a hand-plan row (the first of its entries; -1: not given, which
 /// the loop refuses). Widths: anchor_p 3, anchor_R 9 (row-major), anchor_v 3, anchor_w 3,
-/// force 3 (world axes, or handle axes where force_in_handle != 0), the rest 1.
+/// force 3 and moment 3 (the push: world axes, or handle axes where force_in_handle != 0),
+/// hand_attached 1 (0: the hand has let go), the rest 1.
 struct PlanLayout {
   int columns = -1;  //!< entries per row
   int anchor_p = -1, anchor_R = -1, anchor_v = -1, anchor_w = -1;
   int k_t = -1, b_t = -1, k_r = -1, b_r = -1;
-  int force = -1, force_in_handle = -1, segment = -1;
+  int force = -1, moment = -1, force_in_handle = -1, hand_attached = -1, segment = -1;
 };
 
 /// Column of each field of a log row (the first of its entries; -1: not written). n = the
@@ -65,15 +71,22 @@ struct LoopSettings {
   double quantum = 0.0;             //!< encoder step [rad]; 0: none
   int delay_cycles = 0;             //!< sensor delay [cycles]
   double velocity_alpha = 1.0;      //!< velocity low-pass: dqf += alpha (diff - dqf)
+  int hand_body = -1;  //!< the hand's body (mass zeroed while released); -1: none
 };
 
-/// The loop. Holds the controller, model and data by reference: they must outlive it.
+/// The loop. Holds the controller, model and data by reference: they must outlive it. The
+/// model is changed only where the hand lets go or takes hold again (the hand body's
+/// body_mass, body_inertia and the constants mj_setConst computes); the loop restores the
+/// hand's mass when it is destroyed.
 class ServoLoop {
  public:
   /// Checks the model against the device (one MuJoCo joint per device joint, one actuator
   /// per actuated joint) and the layouts; throws std::invalid_argument naming what is wrong.
-  ServoLoop(Controller& controller, const mjModel* model, mjData* data, LoopSettings settings,
+  ServoLoop(Controller& controller, mjModel* model, mjData* data, LoopSettings settings,
             const PlanLayout& plan, const LogLayout& log);
+  ~ServoLoop();
+  ServoLoop(const ServoLoop&) = delete;
+  ServoLoop& operator=(const ServoLoop&) = delete;
 
   /// Runs cycles k0 .. k0 + rows - 1: plan (rows x plan.columns), noise (rows x n),
   /// dropout (rows; != 0: the sample is lost), log (rows x log.columns) written.
@@ -82,6 +95,7 @@ class ServoLoop {
            const double* dropout, double* log);
 
   int dof() const noexcept { return n_; }
+  bool hand_attached() const noexcept { return attached_; }
   const PlanLayout& plan_layout() const noexcept { return plan_; }
   const LogLayout& log_layout() const noexcept { return log_; }
 
@@ -90,13 +104,14 @@ class ServoLoop {
   void sense(const double* noise, bool dropout);
   void control(double t, const double* noise, bool dropout);
   Vector6 hand_wrench(const double* p, const Pose& T, const Vector6& tw,
-                      const Eigen::Vector3d& force) const;
+                      const Vector6& push) const;
+  void attach_hand(bool attached);
   void cycle(long k, const double* plan, const double* noise, bool dropout, double* row);
   void write_row(double t, const Pose& T_h, const Vector6& tw0, const Vector6& wrench0,
                  const double* plan, double* row) const;
 
   Controller& ctrl_;
-  const mjModel* m_;
+  mjModel* m_;
   mjData* d_;
   LoopSettings s_;
   PlanLayout plan_;
@@ -108,6 +123,8 @@ class ServoLoop {
   JointVector gs_, tau_g_, held_, prev_, dqf_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_,
       received_, sv_;
   long reads_ = 0;
+  bool attached_ = true;
+  double hand_mass_ = 0.0, hand_inertia_[3] = {0.0, 0.0, 0.0};
   Pose pose_ = Pose::Identity();
   Jacobian J_;
   CycleOutput out_;
