@@ -153,44 +153,48 @@ def cmd_schema(args) -> int:
     return 0
 
 
-def _assignments(texts, flag: str, many: bool) -> dict:
-    """--set KEY=VALUE (many=False) or --grid KEY=V1,V2,... texts as {key: value(s)}; one
-    UserError listing every mistake (a key given twice is one)."""
+def _sets(texts) -> tuple[dict, list[str]]:
+    """--set KEY=VALUE texts as ({key: value}, [mistakes]): the texts that can be read, and
+    a message for each that cannot (or that gives a key again)."""
     from .scenarios import ScenarioError, parse_assignment
 
     out, errors = {}, []
     for text in texts or ():
         try:
-            key, value = parse_assignment(text, flag, many)
+            key, value = parse_assignment(text, "--set")
         except ScenarioError as e:
             errors += e.messages
             continue
         if key in out:
-            errors.append(f"{flag} {key}: given twice; expected each key once")
+            errors.append(f"--set {key}: given twice; expected each key once")
         out[key] = value
-    if errors:
-        raise UserError(*errors)
-    return out
+    return out, errors
 
 
-def _with_set(s, sets: dict):
-    """The scenario with the --set keys, re-validated; every mistake named with its flag."""
+def _set_and_duration(s, args) -> tuple:
+    """The scenario with the --set keys and --duration, and every mistake of those flags
+    (each --set on its own first, so that its message names it)."""
     from . import scenarios as sc
 
-    if not sets:
-        return s
-    errors = []
-    for key, value in sets.items():  # each on its own first: the message names its flag
+    sets, errors = _sets(args.set)
+    if sets:
+        for key, value in sets.items():
+            try:
+                s.with_keys({key: value})
+            except sc.ScenarioError as e:
+                errors += [f"--set {key}={_toml_text(value)}: {m}" for m in e.messages]
+        if not errors:
+            try:
+                s = s.with_keys(sets)
+            except sc.ScenarioError as e:  # the keys are valid one by one, not together
+                errors += [f"--set: {m}" for m in e.messages]
+    if args.duration is not None:
         try:
-            s.with_keys({key: value})
+            s = s.with_overrides(duration_s=args.duration)
         except sc.ScenarioError as e:
-            errors += [f"--set {key}={_toml_text(value)}: {m}" for m in e.messages]
-    if errors:
-        raise UserError(*errors)
-    try:
-        return s.with_keys(sets)
-    except sc.ScenarioError as e:  # the keys are valid one by one but not together
-        raise UserError(*[f"--set: {m}" for m in e.messages]) from None
+            errors += [f"--duration {args.duration:g}: {m}" for m in e.messages]
+    args.set_values = sets  # for sweep.json
+    return s, errors
 
 
 def _toml_text(v) -> str:
@@ -203,13 +207,9 @@ def cmd_run(args) -> int:
     from . import scenarios as sc
 
     _require_sim("run")
-    s = sc.load(args.scenario)
-    s = _with_set(s, _assignments(args.set, "--set", many=False))
-    if args.duration is not None:
-        try:
-            s = s.with_overrides(duration_s=args.duration)
-        except sc.ScenarioError as e:
-            raise UserError(*[f"--duration {args.duration:g}: {m}" for m in e.messages]) from None
+    s, errors = _set_and_duration(sc.load(args.scenario), args)
+    if errors:
+        raise UserError(*errors)
     _require_format(args.format)
     out = Path(args.out) if args.out else Path("out") / s.name
     t0 = time.perf_counter()
@@ -229,22 +229,11 @@ def cmd_sweep(args) -> int:
 
     _require_sim("sweep")
     _check_backend(args.backend, args.workers)
-    s = sc.load(args.scenario)
-    errors: list[str] = []  # every mistake of the flags, reported at once
+    s, errors = _set_and_duration(sc.load(args.scenario), args)
     if args.metric not in METRICS:
         errors.append(
             f"--metric {args.metric}: no such metric; expected one of {', '.join(METRICS)}"
         )
-    try:
-        args.set_values = _assignments(args.set, "--set", many=False)  # also for sweep.json
-        s = _with_set(s, args.set_values)
-    except UserError as e:
-        errors += e.messages
-    if args.duration is not None:
-        try:
-            s = s.with_overrides(duration_s=args.duration)
-        except sc.ScenarioError as e:
-            errors += [f"--duration {args.duration:g}: {m}" for m in e.messages]
     grid, mistakes = sc.parse_grid(args.grid)
     # every point checked (and each value of each key on its own) before anything runs
     scenarios = check_grid(s, grid, errors=errors + mistakes)
