@@ -243,6 +243,34 @@ def test_the_process_pool_table_has_a_row_per_point_equal_to_direct_runs(process
     assert (out / "sweep.png").stat().st_size > 10_000
 
 
+def test_the_metrics_sink_gives_the_metrics_of_the_log():
+    # a unilateral probe (penetration applies) and a planar arm, each against metrics() of
+    # the same run's log kept in memory
+    from virtmech import sim
+    from virtmech.sim.output import MetricsSink, metrics
+
+    for name in ("omni-contact", SCENARIO):
+        s = sc.load(name).with_overrides(duration_s=0.2)
+        sink = MetricsSink(s)
+        result = sim.run(s, sink=sink)
+        got, ref = sink.metrics(result), metrics(result)
+        assert got["notes"] == ref["notes"]
+        for k in METRICS:
+            assert _value(got[k]) == _value(ref[k]), (name, k)
+
+
+def test_sweep_from_python_with_a_progress_bar(capsys):
+    from virtmech.sweep import sweep
+
+    grid = {"sensors.noise_rad": [0.0, 1e-3]}  # a table the file does not write
+    table = sweep(SCENARIO, grid, workers=1, duration=0.05, overrides={"seed": 3})
+    assert table.column("sensors.noise_rad").to_pylist() == [0.0, 1e-3]
+    assert table.column("ok").to_pylist() == [True, True]
+    dist = table.column("dist_max_m").to_pylist()
+    assert dist[0] != dist[1]  # the noise reached the runs
+    assert "planar3r-fig9 sweep" in capsys.readouterr().err
+
+
 def test_a_run_that_fails_is_a_row_not_lost():
     s = sc.load(SCENARIO).with_overrides(duration_s=0.01)
     s.data["mechanism"]["length"] = -1.0  # past the checks: fails when the run starts
