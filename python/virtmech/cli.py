@@ -425,7 +425,8 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument(
         "--metric",
         default="dist_max_m",
-        help="the metric of the heat map for two keys (default: dist_max_m)",
+        help="the metric sweep.png shows for two keys (a heat map) or more (default: "
+        "dist_max_m; one key: six main metrics)",
     )
     w.add_argument("--quiet", action="store_true", help="no progress bar")
     sub.add_parser("scenarios", help="list the shipped scenarios")

@@ -397,8 +397,11 @@ def format_table(table, keys: list[str]) -> str:
     """The first PRINT_ROWS rows: the point, its keys, ok and the main metrics."""
     shown = [m for m in MAIN_METRICS if m in table.column_names]
     cols = ["point", *keys, "ok", *shown]
-    widths = [max(5, min(24, len(c))) for c in cols]
     rows = table.slice(0, PRINT_ROWS).select(cols).to_pylist()
+    widths = [
+        max(5, min(24, max([len(c)] + [len(_value_text(r[c])) for r in rows if c in keys])))
+        for c in cols
+    ]
     lines = [" ".join(f"{c[:w]:>{w}}" for c, w in zip(cols, widths))]
     for r in rows:
         lines.append(" ".join(_cell(r[c], w) for c, w in zip(cols, widths)))
@@ -489,7 +492,8 @@ def write_figure(table, keys: list[str], path, metric: str = "dist_max_m") -> No
         pos = xs if numeric else list(range(len(xs)))
         fig, axes = plt.subplots(2, 3, figsize=(11, 6.5), constrained_layout=True)
         for ax, m in zip(axes.ravel(), MAIN_METRICS):
-            ax.plot(pos, [_float(v) for v in data[m]], "o-", color="C0")
+            # categories (strings, lists) are not on a scale: points, not a line
+            ax.plot(pos, [_float(v) for v in data[m]], "o-" if numeric else "o", color="C0")
             ax.set_title(label(m), fontsize=10)
             ax.grid(True, alpha=0.3)
             ax.set_xlabel(key)
@@ -534,7 +538,7 @@ def write_figure(table, keys: list[str], path, metric: str = "dist_max_m") -> No
         ax.set_xlabel("grid point (sweep.parquet's point column)")
         ax.set_ylabel(label(metric))
         ax.grid(True, alpha=0.3)
-        ax.set_title(f"{name}: {metric} at each point of {' x '.join(keys)}")
+        ax.set_title(f"{name}: {metric}\nat each point of {' x '.join(keys)}", fontsize=10)
         fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
