@@ -182,7 +182,7 @@ def _set_and_duration(s, args) -> tuple:
             try:
                 s.with_keys({key: value})
             except sc.ScenarioError as e:
-                errors += [f"--set {key}={_toml_text(value)}: {m}" for m in e.messages]
+                errors += [f"--set {key}={sc.value_text(value)}: {m}" for m in e.messages]
         if not errors:
             try:
                 s = s.with_keys(sets)
@@ -195,12 +195,6 @@ def _set_and_duration(s, args) -> tuple:
             errors += [f"--duration {args.duration:g}: {m}" for m in e.messages]
     args.set_values = sets  # for sweep.json
     return s, errors
-
-
-def _toml_text(v) -> str:
-    from .sweep import _value_text
-
-    return _value_text(v)
 
 
 def cmd_run(args) -> int:
@@ -225,10 +219,10 @@ def cmd_run(args) -> int:
 def cmd_sweep(args) -> int:
     from . import scenarios as sc
     from .sim.output import METRICS
-    from .sweep import _check_backend, check_grid, format_table, run_grid, write_sweep
+    from .sweep import check_backend, check_grid, format_table, run_grid, write_sweep
 
     _require_sim("sweep")
-    _check_backend(args.backend, args.workers)
+    check_backend(args.backend, args.workers)
     s, errors = _set_and_duration(sc.load(args.scenario), args)
     if args.metric not in METRICS:
         errors.append(

@@ -26,10 +26,12 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .errors import UserError
+from .scenarios.overrides import value_text
 
 __all__ = [
     "BACKENDS",
     "TIMING_COLUMNS",
+    "check_backend",
     "check_grid",
     "format_table",
     "grid_points",
@@ -67,17 +69,6 @@ def grid_points(grid: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
     the last key varying fastest; each point a {key: value}."""
     keys = list(grid)
     return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
-
-
-def _value_text(v: Any) -> str:
-    """A value as written on the command line (TOML)."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return v
-    if isinstance(v, list):
-        return "[" + ", ".join(_value_text(x) for x in v) + "]"
-    return repr(v) if isinstance(v, float) else str(v)
 
 
 def check_grid(
@@ -118,7 +109,7 @@ def check_grid(
             s, msgs = check({key: v})
             single[key, i] = s
             for m in dict.fromkeys(msgs):
-                bad.setdefault(m, []).append(_value_text(v))
+                bad.setdefault(m, []).append(value_text(v))
         errors += [f"{flag} {key}={','.join(vs)}: {m}" for m, vs in bad.items()]
     if errors:
         raise UserError(*errors)
@@ -129,7 +120,7 @@ def check_grid(
     out = []
     for k, point in enumerate(points):
         s, msgs = check(point)
-        where = ", ".join(f"{key}={_value_text(v)}" for key, v in point.items())
+        where = ", ".join(f"{key}={value_text(v)}" for key, v in point.items())
         errors += [f"{flag} point {k} ({where}): {m}" for m in msgs]
         out.append(s)
     if errors:
@@ -267,7 +258,7 @@ def _column(pa, values: list):
     try:
         return pa.array(values)
     except (pa.ArrowInvalid, pa.ArrowTypeError):
-        return pa.array([_value_text(v) for v in values])
+        return pa.array([value_text(v) for v in values])
 
 
 def _table(pa, points: list[dict], results: list[dict]):
@@ -321,7 +312,7 @@ def sweep(
     error."""
     from . import scenarios as sc
 
-    _check_backend(backend, workers)
+    check_backend(backend, workers)
     if not grid:
         raise UserError("--grid: expected at least one KEY=V1,V2,... to sweep")
     base = _load(scenario)
@@ -336,7 +327,9 @@ def sweep(
     return run_grid(base.name, grid, check_grid(base, grid), backend, workers, address, progress)
 
 
-def _check_backend(backend: str, workers: int | None) -> None:
+def check_backend(backend: str, workers: int | None) -> None:
+    """A UserError unless `backend` is one of BACKENDS with what it needs installed and
+    `workers` is None or >= 1."""
     if backend not in BACKENDS:
         raise UserError(f"--backend {backend!r}: expected one of {', '.join(BACKENDS)}")
     if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
@@ -357,7 +350,7 @@ def run_grid(
 ):
     """The second half of `sweep`: runs the checked scenarios of the grid's points
     (check_grid's list, in grid order) and returns the table."""
-    _check_backend(backend, workers)
+    check_backend(backend, workers)
     pa = _require_pyarrow()
     points = grid_points(grid)
     if len(points) != len(scenarios):
@@ -389,7 +382,7 @@ def _cell(v: Any, width: int) -> str:
         return f"{'n/a':>{width}}"
     if isinstance(v, float):
         return f"{v:>{width}.4g}"
-    text = _value_text(v)
+    text = value_text(v)
     return f"{text if len(text) <= width else text[: width - 1] + '~':>{width}}"
 
 
@@ -399,7 +392,7 @@ def format_table(table, keys: list[str]) -> str:
     cols = ["point", *keys, "ok", *shown]
     rows = table.slice(0, PRINT_ROWS).select(cols).to_pylist()
     widths = [
-        max(5, min(24, max([len(c)] + [len(_value_text(r[c])) for r in rows if c in keys])))
+        max(5, min(24, max([len(c)] + [len(value_text(r[c])) for r in rows if c in keys])))
         for c in cols
     ]
     lines = [" ".join(f"{c[:w]:>{w}}" for c, w in zip(cols, widths))]
@@ -498,17 +491,17 @@ def write_figure(table, keys: list[str], path, metric: str = "dist_max_m") -> No
             ax.grid(True, alpha=0.3)
             ax.set_xlabel(key)
             if not numeric:
-                ax.set_xticks(pos, [_value_text(x) for x in xs], rotation=30, fontsize=8)
+                ax.set_xticks(pos, [value_text(x) for x in xs], rotation=30, fontsize=8)
         fig.suptitle(f"{name}: the metrics against {key}")
     elif len(keys) == 2:
         import numpy as np
 
         ky, kx = keys
-        ys = list(dict.fromkeys(_value_text(v) for v in data[ky]))
-        xs = list(dict.fromkeys(_value_text(v) for v in data[kx]))
+        ys = list(dict.fromkeys(value_text(v) for v in data[ky]))
+        xs = list(dict.fromkeys(value_text(v) for v in data[kx]))
         Z = np.full((len(ys), len(xs)), math.nan)
         for y, x, v in zip(data[ky], data[kx], data[metric]):
-            Z[ys.index(_value_text(y)), xs.index(_value_text(x))] = _float(v)
+            Z[ys.index(value_text(y)), xs.index(value_text(x))] = _float(v)
         fig, ax = plt.subplots(figsize=(1.2 * len(xs) + 3.5, 0.8 * len(ys) + 2.5))
         im = ax.imshow(np.ma.masked_invalid(Z), origin="lower", aspect="auto", cmap="viridis")
         ax.set_xticks(range(len(xs)), xs, rotation=30 if len(xs) > 4 else 0)

@@ -23,6 +23,7 @@ from .overrides import (
     parse_grid,
     parse_value,
     split_values,
+    value_text,
 )
 from .schema import ScenarioError
 
@@ -41,6 +42,7 @@ __all__ = [
     "path_of",
     "split_values",
     "validate",
+    "value_text",
 ]
 
 DATA = Path(__file__).resolve().parent / "data"

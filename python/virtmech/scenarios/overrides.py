@@ -32,6 +32,7 @@ __all__ = [
     "parse_grid",
     "parse_value",
     "split_values",
+    "value_text",
 ]
 
 #: a dotted key: names and array positions, e.g. controller.kp, intent.1.force, intent[1].force
@@ -146,6 +147,18 @@ def parse_value(text: str) -> Any:
                 '[0.3, 0.1, 0] or "text"'
             ) from None
         return s
+
+
+def value_text(v: Any) -> str:
+    """A value as the command line writes it (TOML; a string bare): the inverse of
+    parse_value for the values a scenario holds."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return v
+    if isinstance(v, list):
+        return "[" + ", ".join(value_text(x) for x in v) + "]"
+    return repr(v) if isinstance(v, float) else str(v)
 
 
 def split_values(text: str) -> list[str]:
