@@ -82,6 +82,7 @@ def test_override_sets_dotted_keys_in_the_raw_table():
         ("intent.x", 1, ["intent.x: intent is an array", "expected a position 0 to 1"]),
         ("duration_s.x", 1, ["duration_s.x: duration_s is a float (3.0)", "expected a key"]),
         ("human.0", 1, ["human.0: human is a table, not an array", "expected a key name"]),
+        ("controller.kp.0", 300, ["controller.kp.0: controller.kp is not written", "no entry 0"]),
         ("human..x", 1, ["'human..x': not a scenario key", "expected a dotted path"]),
     ],
 )

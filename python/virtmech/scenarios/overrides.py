@@ -77,6 +77,11 @@ def override(raw: dict[str, Any], key: str, value: Any) -> dict[str, Any]:
                 )
             if last:
                 cur[part] = copy.deepcopy(value)
+            elif part not in cur and parts[i + 1].isdigit():
+                raise ScenarioError(
+                    f"{key}: {here} is not written in the scenario, so it has no entry "
+                    f"{parts[i + 1]}; expected the whole array, e.g. {here}=[...]"
+                )
             else:
                 cur = cur.setdefault(part, {})
         elif isinstance(cur, list):
