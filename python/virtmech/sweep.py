@@ -309,7 +309,8 @@ def sweep(
 
     Every point is checked before any run starts: a UserError (exit status 2 on the
     command line) lists every mistake. A run that fails is a row with ok false and its
-    error."""
+    error. From a script, call it under ``if __name__ == "__main__":`` (the process pool's
+    workers start with forkserver or spawn, which import the main module)."""
     from . import scenarios as sc
 
     check_backend(backend, workers)

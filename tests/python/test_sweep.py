@@ -264,6 +264,22 @@ def test_sweep_from_python_with_a_progress_bar(capsys):
     assert "planar3r-fig9 sweep" in capsys.readouterr().err
 
 
+#: a long run first: with two workers the short ones end before it
+ORDER_GRID = {"duration_s": [2.0, 0.02, 0.04, 0.02]}
+
+
+def _check_grid_order(table) -> None:
+    assert table.column("point").to_pylist() == [0, 1, 2, 3]
+    assert table.column("duration_s").to_pylist() == ORDER_GRID["duration_s"]
+    assert table.column("sim_time_s").to_pylist() == pytest.approx(ORDER_GRID["duration_s"])
+
+
+def test_rows_are_in_grid_order_whichever_run_ends_first():
+    from virtmech.sweep import sweep
+
+    _check_grid_order(sweep(SCENARIO, ORDER_GRID, workers=2, progress=False))
+
+
 def test_a_run_that_fails_is_a_row_not_lost():
     s = sc.load(SCENARIO).with_overrides(duration_s=0.01)
     s.data["mechanism"]["length"] = -1.0  # past the checks: fails when the run starts
@@ -297,3 +313,6 @@ def test_ray_gives_the_same_table_as_the_process_pool(local_ray, process_sweep, 
     a, b = a.drop_columns(list(TIMING_COLUMNS)), b.drop_columns(list(TIMING_COLUMNS))
     assert a.equals(b, check_metadata=True)
     assert json.loads((out / "sweep.json").read_text())["backend"] == "ray"
+    from virtmech.sweep import sweep
+
+    _check_grid_order(sweep(SCENARIO, ORDER_GRID, backend="ray", progress=False))
