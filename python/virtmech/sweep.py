@@ -228,12 +228,11 @@ def _run_ray(scenarios: list, workers: int | None, address: str | None, bar) -> 
         task = ray.remote(num_cpus=1, max_retries=0)(run_point)
         results: list[dict | None] = [None] * len(scenarios)
         limit = workers or len(scenarios)
-        pending: dict[Any, int] = {}
-        todo = list(enumerate(scenarios))
-        while todo or pending:
-            while todo and len(pending) < limit:
-                k, s = todo.pop(0)
-                pending[task.remote(s)] = k
+        pending: dict[Any, int] = {}  # at most `limit` tasks at once
+        todo = iter(enumerate(scenarios))
+        for k, s in itertools.islice(todo, limit):
+            pending[task.remote(s)] = k
+        while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
             for ref in done:
                 k = pending.pop(ref)
@@ -246,6 +245,8 @@ def _run_ray(scenarios: list, workers: int | None, address: str | None, bar) -> 
                         "metrics": None,
                     }
                 bar.update(1)
+                for k_next, s_next in itertools.islice(todo, 1):
+                    pending[task.remote(s_next)] = k_next
         return results  # type: ignore[return-value]
     finally:
         if started:
