@@ -6,8 +6,8 @@
 
 Each point of the grid (the Cartesian product of the keys' values, the last key varying
 fastest) is the scenario with those dotted keys set (virtmech.scenarios.override), checked
-before any run starts; every run is a ``virtmech.sim.run`` in a worker process of its own
-that keeps no log (the metrics are accumulated as the log goes by,
+before any run starts; every run is a ``virtmech.sim.run`` in a worker process (one point
+after another in each) that keeps no log (the metrics are accumulated as the log goes by,
 virtmech.sim.output.MetricsSink). The runs go to a local process pool (backend="process",
 the default) or to Ray (backend="ray"; ``pip install "virtmech[cluster]"``). The table has
 one row per point, in grid order whichever run ends first: ``point``, one column per key,
