@@ -3,7 +3,12 @@
 virtmech demo [--out DIR] [--only NAME...]   every shipped scenario, summary.json, index.html
 virtmech run SCENARIO [--out DIR]     one scenario (a TOML path or a shipped name)
              [--seed N] [--duration S]
+             [--set KEY=VALUE ...]    set scenario keys (dotted: controller.law=null_space)
              [--format csv|parquet]   the log as log.csv (default) or log.parquet (pyarrow)
+virtmech sweep SCENARIO --grid KEY=V1,V2,... [--grid ...]   a grid of runs in parallel:
+             [--out DIR] [--backend process|ray] [--address ADDR] [--workers N]
+             [--duration S] [--set KEY=VALUE ...] [--metric NAME]
+                                      sweep.parquet, sweep.json, sweep.png (docs/sweeps.md)
 virtmech scenarios                    the shipped scenarios
 virtmech schema                       the JSON Schema of the scenario format
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
@@ -148,16 +153,57 @@ def cmd_schema(args) -> int:
     return 0
 
 
-def cmd_run(args) -> int:
+def _sets(texts) -> tuple[dict, list[str]]:
+    """--set KEY=VALUE texts as ({key: value}, [mistakes]): the texts that can be read, and
+    a message for each that cannot (or that gives a key again)."""
+    from .scenarios import ScenarioError, parse_assignment
+
+    out, errors = {}, []
+    for text in texts or ():
+        try:
+            key, value = parse_assignment(text, "--set")
+        except ScenarioError as e:
+            errors += e.messages
+            continue
+        if key in out:
+            errors.append(f"--set {key}: given twice; expected each key once")
+        out[key] = value
+    return out, errors
+
+
+def _set_and_duration(s, args) -> tuple:
+    """The scenario with the --set keys and --duration, and every mistake of those flags
+    (each --set on its own first, so that its message names it)."""
     from . import scenarios as sc
 
-    _require_sim("run")
-    s = sc.load(args.scenario)
+    sets, errors = _sets(args.set)
+    if sets:
+        for key, value in sets.items():
+            try:
+                s.with_keys({key: value})
+            except sc.ScenarioError as e:
+                errors += [f"--set {key}={sc.value_text(value)}: {m}" for m in e.messages]
+        if not errors:
+            try:
+                s = s.with_keys(sets)
+            except sc.ScenarioError as e:  # the keys are valid one by one, not together
+                errors += [f"--set: {m}" for m in e.messages]
     if args.duration is not None:
         try:
             s = s.with_overrides(duration_s=args.duration)
         except sc.ScenarioError as e:
-            raise UserError(*[f"--duration {args.duration:g}: {m}" for m in e.messages]) from None
+            errors += [f"--duration {args.duration:g}: {m}" for m in e.messages]
+    args.set_values = sets  # for sweep.json
+    return s, errors
+
+
+def cmd_run(args) -> int:
+    from . import scenarios as sc
+
+    _require_sim("run")
+    s, errors = _set_and_duration(sc.load(args.scenario), args)
+    if errors:
+        raise UserError(*errors)
     _require_format(args.format)
     out = Path(args.out) if args.out else Path("out") / s.name
     t0 = time.perf_counter()
@@ -167,6 +213,38 @@ def cmd_run(args) -> int:
         f"({time.perf_counter() - t0:.2f} s wall)"
     )
     _print_metrics({s.name: m})
+    return 0
+
+
+def cmd_sweep(args) -> int:
+    from . import scenarios as sc
+    from .sim.output import METRICS
+    from .sweep import check_backend, check_grid, format_table, run_grid, write_sweep
+
+    _require_sim("sweep")
+    check_backend(args.backend, args.workers)
+    s, errors = _set_and_duration(sc.load(args.scenario), args)
+    if args.metric not in METRICS:
+        errors.append(
+            f"--metric {args.metric}: no such metric; expected one of {', '.join(METRICS)}"
+        )
+    grid, mistakes = sc.parse_grid(args.grid)
+    # every point checked (and each value of each key on its own) before anything runs
+    scenarios = check_grid(s, grid, errors=errors + mistakes)
+    out = _out_dir(args.out or Path("out") / f"{s.name}-sweep")
+    t0 = time.perf_counter()
+    table = run_grid(
+        s.name, grid, scenarios, args.backend, args.workers, args.address, not args.quiet
+    )
+    wall = time.perf_counter() - t0
+    write_sweep(table, out, s, grid, args, wall)
+    failed = table.num_rows - sum(table.column("ok").to_pylist())
+    print(
+        f"{s.name}: {table.num_rows} runs ({args.backend}) in {wall:.1f} s wall; wrote "
+        f"{out}/sweep.parquet, sweep.json, sweep.png"
+        + (f"; {failed} failed (see the error column)" if failed else "")
+    )
+    print(format_table(table, list(grid)))
     return 0
 
 
@@ -257,6 +335,16 @@ def _seed(text: str) -> int:
     return v
 
 
+def _workers(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text}")
+    return v
+
+
 FORMAT_HELP = (
     "the log's file: csv (log.csv, default) or parquet (log.parquet; needs pyarrow: "
     "pip install 'virtmech[parquet]')"
@@ -292,13 +380,62 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--duration", type=float, help="override duration_s [s]")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--format", choices=LOG_FORMATS, default="csv", help=FORMAT_HELP)
+    r.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="set a scenario key, e.g. --set human.stiffness=300 --set controller.law=null_space "
+        "(a dotted path; arrays by position: intent.1.force=[0,0,1]; values are TOML; "
+        "repeatable)",
+    )
+    w = sub.add_parser(
+        "sweep", help="run a scenario over a grid of key values in parallel (docs/sweeps.md)"
+    )
+    w.add_argument("scenario", help="SCENARIO.toml or a name from `virtmech scenarios`")
+    w.add_argument(
+        "--grid",
+        action="append",
+        required=True,
+        metavar="KEY=V1,V2,...",
+        help="a key and its values (TOML, split at commas outside brackets: "
+        "'mechanism.pivot=[0.3,0.1,0],[0.31,0.1,0]'); repeat for a Cartesian product",
+    )
+    w.add_argument("--out", help="output folder (default: out/<name>-sweep)")
+    w.add_argument(
+        "--backend",
+        choices=("process", "ray"),
+        default="process",
+        help="process: a local process pool (default); ray: Ray tasks "
+        '(pip install "virtmech[cluster]")',
+    )
+    w.add_argument("--address", help="the Ray cluster to connect to (default: a local Ray)")
+    w.add_argument(
+        "--workers", type=_workers, help="processes (Ray: tasks at once); default: all cores"
+    )
+    w.add_argument("--duration", type=float, help="override duration_s [s] at every point")
+    w.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="set a key at every point (as run)"
+    )
+    w.add_argument(
+        "--metric",
+        default="dist_max_m",
+        help="the metric sweep.png shows for two keys (a heat map) or more (default: "
+        "dist_max_m; one key: six main metrics)",
+    )
+    w.add_argument("--quiet", action="store_true", help="no progress bar")
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)
     return p
 
 
-COMMANDS = {"demo": cmd_demo, "run": cmd_run, "scenarios": cmd_scenarios, "schema": cmd_schema}
+COMMANDS = {
+    "demo": cmd_demo,
+    "run": cmd_run,
+    "scenarios": cmd_scenarios,
+    "schema": cmd_schema,
+    "sweep": cmd_sweep,
+}
 
 
 def main(argv: list[str] | None = None) -> int:

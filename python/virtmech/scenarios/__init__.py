@@ -16,17 +16,33 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .overrides import (
+    apply_overrides,
+    override,
+    parse_assignment,
+    parse_grid,
+    parse_value,
+    split_values,
+    value_text,
+)
 from .schema import ScenarioError
 
 __all__ = [
     "Scenario",
     "ScenarioError",
+    "apply_overrides",
     "json_schema",
     "load",
     "loads",
     "names",
+    "override",
+    "parse_assignment",
+    "parse_grid",
+    "parse_value",
     "path_of",
+    "split_values",
     "validate",
+    "value_text",
 ]
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -73,6 +89,11 @@ class Scenario:
             else:
                 raw[k] = v
         return validate(raw, self.source)
+
+    def with_keys(self, overrides: dict[str, Any]) -> Scenario:
+        """A re-validated copy with dotted keys set (virtmech.scenarios.overrides), e.g.
+        ``s.with_keys({"controller.law": "null_space", "intent.1.duration_s": 1.5})``."""
+        return validate(apply_overrides(self.raw, overrides), self.source)
 
     def to_dict(self) -> dict[str, Any]:
         return copy.deepcopy(self.data)

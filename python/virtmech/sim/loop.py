@@ -544,6 +544,22 @@ def _built(scenario, table: str, build: Callable[[], Any]) -> Any:
         raise ScenarioError(f"{scenario.source}: {key}: {msg}") from None
 
 
+def preflight(scenario) -> None:
+    """What `run` checks before it simulates, without simulating: the device, the mechanism
+    and the controller built from the scenario, and the start pose reached; the same
+    ScenarioError naming the file and the key as `run` would raise (virtmech sweep checks
+    every point of a grid so before any run starts)."""
+    S = scenario.data
+    device = _built(scenario, "device", lambda: make_device(S["device"]))
+    mech = _built(scenario, "mechanism", lambda: make_mechanism(S["mechanism"]))
+    _built(
+        scenario,
+        "controller",
+        lambda: vm.Controller(device, mech, **controller_kwargs(S["controller"])),
+    )
+    _built(scenario, "initial", lambda: initial_joints(S, device, mech))
+
+
 # ---------------------------------------------------------------------------------------
 # the loop
 

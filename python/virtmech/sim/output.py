@@ -232,25 +232,58 @@ def _total(parts: list[float]) -> float:
     return parts[0] if len(parts) == 1 else float(math.fsum(parts))
 
 
+def _accumulator(scenario, mech: dict) -> _MetricSums:
+    from .loop import make_device
+
+    device = make_device(scenario.data["device"])
+    act = np.asarray(device.actuated, dtype=bool)
+    lim = np.asarray(device.torque_limit, dtype=float)
+    return _MetricSums(device.dof, act, lim, bool(mech.get("unilateral")))
+
+
 def metrics(result: SimResult, block_rows: int | None = None) -> dict:
     """Per-run metrics (SI units), defined in `METRICS`. A metric that does not apply to
     the run is NaN here (null in run.json and summary.json) and ``notes[name]`` says why.
 
     The log is read block by block (`result.blocks`, `block_rows` rows at a time), only the
     columns of `metric_columns`: memory stays one block however long the run."""
-    from .loop import make_device
-
     r = result
-    device = make_device(r.scenario.data["device"])
-    n = device.dof
-    act = np.asarray(device.actuated, dtype=bool)
-    lim = np.asarray(device.torque_limit, dtype=float)
     mech = r.info.get("mechanism") or r.scenario.data["mechanism"]
+    acc = _accumulator(r.scenario, mech)
+    for B in r.blocks(metric_columns(acc.n), block_rows):
+        acc.add(B)
+    return _finish(r, acc, mech)
+
+
+class MetricsSink:
+    """A sink for ``virtmech.sim.run`` that accumulates the metrics of the run as its log
+    goes by, block by block, and keeps nothing else: ``run(s, sink=m, keep_log=False)``
+    then ``m.metrics(result)`` gives what `metrics` gives for the same blocks (every shipped
+    scenario's log is one block: the same numbers bit for bit), with no log kept anywhere.
+    This is how each run of ``virtmech sweep`` is measured."""
+
+    def __init__(self, scenario):
+        self.scenario = scenario
+        self.acc = _accumulator(scenario, scenario.data["mechanism"])
+        self._idx: np.ndarray | None = None
+
+    def __call__(self, rows: np.ndarray, columns: list[str]) -> None:
+        if self._idx is None:
+            self._idx = np.array(
+                [columns.index(c) for c in metric_columns(self.acc.n)], dtype=np.intp
+            )
+        self.acc.add(np.asarray(rows[:, self._idx], dtype=np.float64))
+
+    def metrics(self, result: SimResult) -> dict:
+        """The run's metrics (as `metrics`), once `result` has run with this sink."""
+        mech = result.info.get("mechanism") or result.scenario.data["mechanism"]
+        return _finish(result, self.acc, mech)
+
+
+def _finish(r: SimResult, acc: _MetricSums, mech: dict) -> dict:
+    """The metrics of a run from its accumulated sums."""
     point, target = _point_and_target(mech)
     notes: dict[str, str] = {}
-    acc = _MetricSums(n, act, lim, bool(mech.get("unilateral")))
-    for B in r.blocks(metric_columns(n), block_rows):
-        acc.add(B)
     if acc.rows == 0:
         raise ValueError("metrics: the log is empty (a run with keep_log=False and no source)")
     t_first = acc.t_first
