@@ -451,8 +451,6 @@ void passivity(const ControllerModel& M, const Device& dev, ControllerData& d, c
     double work = 0.0;
     for (int i = 0; i < dev.dof(); ++i) work += d.last_torque[i] * (q[i] - d.last_q[i]);
     d.energy -= work;
-  } else {
-    d.energy = stored;
   }
   d.energy = std::min(d.energy, stored + M.passivity_max_energy);
   out.energy = d.energy;

@@ -202,9 +202,9 @@ def _hold(start: float, duration: float, **kw) -> dict:
     return {"action": "hold", "start_s": start, "duration_s": duration, **kw}
 
 
-def _push(start: float, duration: float, force, ramp: float = 0.2, **kw) -> dict:
-    # a pure force: no stiffness of the hand (its damping stays, which a static push does
-    # not feel)
+def _push(start: float, duration: float, force, ramp: float = 0.2) -> dict:
+    # a push of a pure force: the hand's translational stiffness off (its damping stays,
+    # which a static push does not feel), the stylus held in orientation as a hand holds it
     return {
         "action": "push",
         "start_s": start,
@@ -212,7 +212,6 @@ def _push(start: float, duration: float, force, ramp: float = 0.2, **kw) -> dict
         "ramp_s": ramp,
         "force": [float(x) for x in force],
         "stiffness": 0.0,
-        **kw,
     }
 
 
@@ -333,7 +332,7 @@ def work(setup: Setup, workers: int | None = 1, rest: Run | None = None) -> dict
     axes = setup.constrained_axes(rest)
     runs_spec = {
         "released": (
-            [_hold(0.0, 0.5), {"action": "release", "start_s": 0.5, "duration_s": 2.0}],
+            [_hold(0.0, 0.5), {"action": "release", "start_s": 0.5}],
             2.5,
         ),
         "twist strokes": (
@@ -388,7 +387,7 @@ def work(setup: Setup, workers: int | None = 1, rest: Run | None = None) -> dict
 
 
 def _release_spec() -> tuple[list[dict], float]:
-    return [_hold(0.0, 0.5), {"action": "release", "start_s": 0.5, "duration_s": 1.5}], 2.0
+    return [_hold(0.0, 0.5), {"action": "release", "start_s": 0.5}], 2.0
 
 
 def _tap_spec(axis: np.ndarray) -> tuple[list[dict], float]:
