@@ -115,7 +115,10 @@ struct PhantomOmniParams {
   /// g_vm = sign * (g_driver - offset). Defaults: the driver already speaks virtmech's.
   std::array<double, 3> gimbal_offset{{0.0, 0.0, 0.0}};
   std::array<double, 3> gimbal_sign{{1.0, 1.0, 1.0}};
-  double stiffness = 500.0;  //!< default Kp [N/m] (HD_NOMINAL_MAX_STIFFNESS 0.5 N/mm)
+  /// default Kp [N/m]: 1.2 N/mm, between the datasheet's stiffness along z and x (1.02,
+  /// 1.26 N/mm) and at most half the smallest Kp at which any hand of the grid or a released
+  /// handle limit-cycles on the simulated Omni (docs/quality.md)
+  double stiffness = 1200.0;
   double damping = 1.0;      //!< default Kv [N·s/m]
 };
 

@@ -40,10 +40,13 @@ HUMAN_GRID = {
     "damping": (2.0, 5.0, 10.0),
     "stiffness": (50.0, 200.0, 500.0),
 }
-#: a limit cycle: the force's AC part over the last window above this [N] rms ...
-LIMIT_CYCLE_RMS_N = 0.1
+#: a limit cycle: the force's AC part over the last window above this [N] rms (well above
+#: the encoders' quantisation times Kp: 55 µm x 3 N/mm = 0.17 N steps) ...
+LIMIT_CYCLE_RMS_N = 0.3
 #: ... and not decaying: at least this fraction of the window before
 LIMIT_CYCLE_PERSISTENCE = 0.7
+#: quiet: the force's AC part at most this [N] rms
+QUIET_RMS_N = 0.1
 #: the window [s]
 LIMIT_CYCLE_WINDOW_S = 0.3
 
@@ -396,8 +399,9 @@ def _tap_spec(axis: np.ndarray) -> tuple[list[dict], float]:
 
 def limit_cycle(run: Run) -> dict:
     """Sustained oscillation at the end of a run: the rms of the device force's AC part in
-    the last window and the window before it; a limit cycle where the last is above
-    LIMIT_CYCLE_RMS_N and has not decayed below LIMIT_CYCLE_PERSISTENCE of the one before."""
+    the last window and in the window before it. A limit cycle where the last is above
+    LIMIT_CYCLE_RMS_N and has not decayed below LIMIT_CYCLE_PERSISTENCE of the one before;
+    quiet where it is at most QUIET_RMS_N."""
     f = np.stack([run.cols["fx"], run.cols["fy"], run.cols["fz"]], axis=1)
     t_end, w = run.t[-1], LIMIT_CYCLE_WINDOW_S
 
@@ -406,10 +410,12 @@ def limit_cycle(run: Run) -> dict:
         return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
 
     last, before = rms(t_end - w, t_end + 1e-9), rms(t_end - 2 * w, t_end - w)
+    cycle = last > LIMIT_CYCLE_RMS_N and last >= LIMIT_CYCLE_PERSISTENCE * before
     return {
         "rms_last_n": last,
         "rms_before_n": before,
-        "limit_cycle": bool(last > LIMIT_CYCLE_RMS_N and last >= LIMIT_CYCLE_PERSISTENCE * before),
+        "limit_cycle": bool(cycle),
+        "quiet": bool(last <= QUIET_RMS_N),
     }
 
 

@@ -11,7 +11,8 @@ import pytest
 
 import virtmech as vm
 
-KP = 500.0  # [N/m] the devices' default translational stiffness
+# [N/m] the Omni's default translational stiffness (also given to the Cartesian test device)
+KP = vm.PhantomOmni().stiffness
 KV = 1.0  # [N·s/m]
 L = 0.1  # [m] probe length
 
