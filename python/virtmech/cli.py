@@ -248,6 +248,32 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+def cmd_quality(args) -> int:
+    from . import quality as Q
+    from . import scenarios as sc
+
+    _require_sim("quality")
+    s, errors = _set_and_duration(sc.load(args.scenario), args)
+    if s.data["mechanism"]["type"] not in ("PlanarArm", "Probe", "PointPivot", "LineGuide"):
+        errors.append(
+            f"{args.scenario}: mechanism.type {s.data['mechanism']['type']!r}: quality measures "
+            "PlanarArm, Probe, PointPivot and LineGuide"
+        )
+    if errors:
+        raise UserError(*errors)
+    out = _out_dir(args.out or Path("out") / f"{s.name}-quality")
+    t0 = time.perf_counter()
+    grid = (Q.MAP_KP, Q.MAP_KV) if args.map else None
+    result = Q.measure(Q.Setup(s), workers=args.workers, stability_map_grid=grid)
+    files = Q.write_report(result, out)
+    if args.json:
+        print(json.dumps(result, indent=2, default=float))
+    else:
+        print("\n".join(Q.summary_lines(result)))
+        print(f"wrote {out}/{', '.join(files)} ({time.perf_counter() - t0:.1f} s wall)")
+    return 0
+
+
 def _print_metrics(runs: dict) -> None:
     print(
         f"{'scenario':<16} {'to 1 mm [s]':>11} {'max after [mm]':>14} {'max |f| [N]':>11} "
@@ -423,6 +449,22 @@ def build_parser() -> argparse.ArgumentParser:
         "dist_max_m; one key: six main metrics)",
     )
     w.add_argument("--quiet", action="store_true", help="no progress bar")
+    qp = sub.add_parser(
+        "quality",
+        help="measure the rendering: stiffness, forces along free motion, motor work, limit "
+        "cycles, fidelity, stability map (docs/quality.md)",
+    )
+    qp.add_argument("scenario", help="SCENARIO.toml or a name: its device, mechanism, gains, hand")
+    qp.add_argument("--out", help="output folder (default: out/<name>-quality)")
+    qp.add_argument("--json", action="store_true", help="print the result as JSON")
+    qp.add_argument(
+        "--map", action="store_true", help="also the Kp x Kv stability map (about 10 s more)"
+    )
+    qp.add_argument("--workers", type=_workers, default=1, help="processes (default: 1)")
+    qp.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="set a scenario key (as run)"
+    )
+    qp.set_defaults(duration=None)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)
@@ -435,6 +477,7 @@ COMMANDS = {
     "scenarios": cmd_scenarios,
     "schema": cmd_schema,
     "sweep": cmd_sweep,
+    "quality": cmd_quality,
 }
 
 

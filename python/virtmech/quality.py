@@ -489,21 +489,16 @@ def stability_map(
 
 
 #: the laws `fidelity` compares, as controller settings on the under-actuated device
-def _laws(L: float) -> dict[str, dict]:
-    full = [1.0, 1.0, 1.0, L * L, L * L, L * L]
-    return {
-        "eq. 11": {"law": "null_space", "passivity": "off"},
-        "eq. 26": {"law": "under_actuated", "passivity": "off"},
-        "naive": {"law": "null_space", "passivity": "off", "w_a": full, "w_e": full},
-        "eq. 26, passive": {"law": "under_actuated", "passivity": "energy_tank"},
-    }
+LAWS = ("eq. 11", "eq. 26", "naive", "eq. 26, passive")
 
 
 def fidelity(setup: Setup, workers: int | None = 1) -> dict:
-    """The scenario (with its own intents) on the device as it is, for each law, against a
-    fully actuated variant (every joint driven, eq. 11 with full weights): the relative rms
-    of the force difference, |f - f_full|_rms / |f_full|_rms, over the run, and the rms of
-    each."""
+    """The scenario (with its own intents and translational gains) on the device as it is,
+    for each law of LAWS, against a fully actuated variant of the device (every joint
+    driven) rendering the same mechanism with eq. 11 and the full gains Kp U, Kv U on every
+    axis: the relative rms of the force difference, |f - f_full|_rms / |f_full|_rms, over
+    the run, and the rms of each. "naive" renders the fully actuated law on the
+    under-actuated device and drops what it cannot render."""
     import virtmech as vm
 
     data = setup.scenario.data
@@ -513,26 +508,46 @@ def fidelity(setup: Setup, workers: int | None = 1) -> dict:
             f"got {data['device']['type']!r}"
         )
     L = setup._mech.length_scale
-    k, b = vm.PhantomOmni().stiffness, vm.PhantomOmni().damping
-    full = [1.0, 1.0, 1.0, L * L, L * L, L * L]
-    raw = {k_: v for k_, v in setup.scenario.raw.items() if k_ != "checks"}
-    raws = {}
-    for name, ctrl in _laws(L).items():
-        r = {**raw, "controller": {**raw.get("controller", {}), **ctrl}}
-        if name == "naive":
-            r["controller"]["kp"] = [k * u for u in full]
-            r["controller"]["kv"] = [b * u for u in full]
-        raws[name] = r
-    fa = dict(raw)
-    fa["device"] = {**raw["device"], "actuated": [True] * 6}
-    fa["controller"] = {**raw.get("controller", {}), "law": "null_space", "passivity": "off"}
-    raws["fully actuated"] = fa
-    runs = dict(zip(raws, run_all(list(raws.values()), workers)))
-    ref = runs.pop("fully actuated")
+    given = setup.raw.get("controller", {})
+    omni = vm.PhantomOmni()
+    k = float(given["kp"][0]) if "kp" in given else omni.stiffness
+    b = float(given["kv"][0]) if "kv" in given else omni.damping
+    U = [1.0, 1.0, 1.0, L * L, L * L, L * L]
+    base = {key: v for key, v in given.items() if key not in ("law", "passivity")}
+    full = {
+        **{key: v for key, v in base.items() if key not in ("kp", "kv", "w_a", "w_e", "w_e_star")},
+        "kp": [k * u for u in U],
+        "kv": [b * u for u in U],
+        "w_a": U,
+        "w_e": U,
+        "law": "null_space",
+        "passivity": "off",
+    }
+    raw = {key: v for key, v in setup.scenario.raw.items() if key != "checks"}
+    controllers = {
+        "eq. 11": {**base, "law": "null_space", "passivity": "off"},
+        "eq. 26": {**base, "law": "under_actuated", "passivity": "off"},
+        "naive": full,
+        "eq. 26, passive": {**base, "law": "under_actuated", "passivity": "energy_tank"},
+    }
+    raws = [
+        {**raw, "name": f"{raw['name']}-{i}", "controller": c}
+        for i, c in enumerate(controllers.values())
+    ]
+    raws.append(
+        {
+            **raw,
+            "name": f"{raw['name']}-full",
+            "controller": full,
+            "device": {**raw["device"], "actuated": [True] * 6},
+        }
+    )
+    runs = run_all(raws, workers)
+    ref = runs.pop()
     f_ref = np.stack([ref.cols["fx"], ref.cols["fy"], ref.cols["fz"]], axis=1)
     rms_ref = float(np.sqrt(np.mean(np.sum(f_ref**2, axis=1))))
     out = {"fully actuated": {"force_rms_n": rms_ref}}
-    for name, r in runs.items():
+    for name, r in zip(controllers, runs):
         f = np.stack([r.cols["fx"], r.cols["fy"], r.cols["fz"]], axis=1)
         diff = float(np.sqrt(np.mean(np.sum((f - f_ref) ** 2, axis=1))))
         out[name] = {
@@ -540,3 +555,128 @@ def fidelity(setup: Setup, workers: int | None = 1) -> dict:
             "relative_rms_error": diff / rms_ref if rms_ref > 0 else math.inf,
         }
     return out
+
+
+# ---------------------------------------------------------------------------------------
+# the whole report (virtmech quality)
+
+#: the Kp [N/m] x Kv [N·s/m] grid of the stability map by default
+MAP_KP = (600.0, 1200.0, 2000.0, 3000.0, 4000.0, 5000.0)
+MAP_KV = (0.5, 1.0, 2.0)
+
+
+def measure(
+    setup: Setup,
+    workers: int | None = 1,
+    stability_map_grid: tuple[Sequence[float], Sequence[float]] | None = None,
+) -> dict:
+    """Every measure for one setup (the stability map only when its Kp and Kv values are
+    given, as it is the costly one): a dict ready for JSON."""
+    rest = setup.start(workers)
+    out: dict[str, Any] = {
+        "scenario": setup.scenario.name,
+        "controller": setup.raw.get("controller", {}),
+        "stiffness": stiffness(setup, workers=workers, rest=rest),
+        "free_force": free_force(setup, workers=workers, rest=rest),
+        "work": work(setup, workers=workers, rest=rest),
+        "limit_cycles": limit_cycles(setup, workers=workers, rest=rest),
+    }
+    if setup.scenario.data["device"]["type"] == "PhantomOmni":
+        out["fidelity"] = fidelity(setup, workers=workers)
+    if stability_map_grid is not None:
+        out["stability_map"] = stability_map(setup, *stability_map_grid, workers=workers)
+    return out
+
+
+def summary_lines(result: dict) -> list[str]:
+    """The report as plain-text lines (the CLI prints them)."""
+    lines = [f"{result['scenario']}: rendering quality"]
+    for axis, d in result["stiffness"].items():
+        devs = ", ".join(f"{f} N: {v * 1e3:.3f} mm" for f, v in d["deviation_m"].items())
+        lines.append(
+            f"  stiffness {axis}: {d['stiffness_n_per_m'] / 1e3:.3f} N/mm (deviation {devs})"
+        )
+    for v, d in result["free_force"].items():
+        lines.append(
+            f"  force along the motion at {v} m/s: mean {d['mean_n']:+.3f} N, "
+            f"peak {d['peak_n']:.3f} N"
+        )
+    for name, d in result["work"].items():
+        extra = ""
+        if "travel_deg" in d:
+            extra = f", travel {d['travel_deg']:.2f} deg"
+        elif "travel_m" in d:
+            extra = f", travel {d['travel_m'] * 1e3:.2f} mm"
+        lines.append(f"  motors' net work, {name}: {d['net_work_j'] * 1e3:+.3f} mJ{extra}")
+    lc = result["limit_cycles"]
+    quiet = sum(h["quiet"] for h in lc["hands"]) + lc["released"]["quiet"]
+    lines.append(
+        f"  free of limit cycles: {lc['stable']}/{lc['total']} (hands of the grid and a "
+        f"released handle); quiet (<= {QUIET_RMS_N} N rms): {quiet}/{lc['total']}"
+    )
+    if "fidelity" in result:
+        fa = result["fidelity"]["fully actuated"]["force_rms_n"]
+        lines.append(f"  fidelity against the fully actuated device ({fa:.3f} N rms):")
+        for law in LAWS:
+            d = result["fidelity"][law]
+            lines.append(
+                f"    {law:16s} relative rms error {d['relative_rms_error']:.3f} "
+                f"(force {d['force_rms_n']:.3f} N rms)"
+            )
+    if "stability_map" in result:
+        m = result["stability_map"]
+        lines.append("  stability map (Kp N/mm x Kv N·s/m; + free of limit cycles):")
+        lines.append("    " + " ".join(f"{v:>5g}" for v in m["kv"]))
+        for kp, row in zip(m["kp"], m["stable"]):
+            lines.append(f"    {kp / 1e3:4.1f} " + " ".join(f"{'+' if s else 'x':>5}" for s in row))
+    return lines
+
+
+def write_report(result: dict, out) -> list[str]:
+    """quality.json, fidelity.png, stability_map.png (when measured) and index.html in the
+    folder `out`; returns the files written."""
+    import html
+    import json
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = ["quality.json"]
+    (out / "quality.json").write_text(json.dumps(result, indent=2, default=float) + "\n")
+    if "fidelity" in result:
+        fig, ax = plt.subplots(figsize=(6, 3.2))
+        errs = [result["fidelity"][law]["relative_rms_error"] for law in LAWS]
+        ax.bar(LAWS, errs, color=["0.6", "C0", "C3", "C2"])
+        ax.set_ylabel("force error / fully actuated (rms)")
+        ax.set_title(f"{result['scenario']}: fidelity")
+        fig.tight_layout()
+        fig.savefig(out / "fidelity.png", dpi=110)
+        plt.close(fig)
+        files.append("fidelity.png")
+    if "stability_map" in result:
+        m = result["stability_map"]
+        fig, ax = plt.subplots(figsize=(4.5, 3.6))
+        grid = np.asarray(m["stable"], dtype=float)
+        ax.imshow(grid, origin="lower", cmap="RdYlGn", vmin=0, vmax=1, aspect="auto")
+        ax.set_xticks(range(len(m["kv"])), [f"{v:g}" for v in m["kv"]])
+        ax.set_yticks(range(len(m["kp"])), [f"{v / 1e3:g}" for v in m["kp"]])
+        ax.set_xlabel("Kv [N·s/m]")
+        ax.set_ylabel("Kp [N/mm]")
+        ax.set_title("free of limit cycles (green)")
+        fig.tight_layout()
+        fig.savefig(out / "stability_map.png", dpi=110)
+        plt.close(fig)
+        files.append("stability_map.png")
+    body = "\n".join(html.escape(line) for line in summary_lines(result))
+    imgs = "".join(f'<p><img src="{f}" alt="{f}"></p>' for f in files if f.endswith(".png"))
+    (out / "index.html").write_text(
+        f"<!doctype html><meta charset='utf-8'><title>{html.escape(result['scenario'])}: "
+        f"quality</title><pre>{body}</pre>{imgs}\n"
+    )
+    files.append("index.html")
+    return files
