@@ -152,7 +152,7 @@ class Setup:
         human: dict | None = None,
     ) -> dict:
         raw = dict(self.raw)
-        raw["name"] = f"{self.scenario.name}-{name}"
+        raw["name"] = f"{self.scenario.name}-{name}".replace(" ", "-")
         raw["intent"] = intents
         raw["duration_s"] = duration_s
         raw["controller"] = {**self.raw["controller"], **(controller or {})}

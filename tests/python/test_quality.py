@@ -47,6 +47,16 @@ def test_default_gains_render_at_least_1_n_per_mm_and_1_mm_at_1_n(default):
     assert vm.PhantomOmni().stiffness == pytest.approx(1200.0)
 
 
+def test_a_probe_pressed_into_its_plane_is_as_stiff():
+    import virtmech.scenarios as sc
+
+    on_plane = sc.load("omni-contact").with_keys({"initial.offset": [0.0, 0.0, 0.0]})
+    st = Q.stiffness(Q.Setup(on_plane))
+    d = st["into the plane"]
+    assert d["stiffness_n_per_m"] >= 1000.0
+    assert 0.0 < d["deviation_m"]["1"] <= 1e-3
+
+
 def test_no_hand_of_the_grid_nor_a_released_handle_limit_cycles_at_the_defaults(default):
     s, rest = default
     lc = Q.limit_cycles(s, rest=rest)
@@ -149,5 +159,8 @@ def test_cli_mistakes_exit_2_without_a_traceback(tmp_path):
     assert "controller.passivity" in r.stderr and "tdpa" in r.stderr
     assert "Traceback" not in r.stderr
     assert not (tmp_path / "q").exists()  # nothing written
-    r = run_cli("quality", "arm7-contact", "--out", str(tmp_path / "q"))
-    assert r.returncode == 2 and "Traceback" not in r.stderr
+    for bad in (["no-such-scenario"], ["omni-contact", "--workers", "0"]):
+        r = run_cli("quality", *bad, "--out", str(tmp_path / "q"))
+        assert r.returncode == 2 and "Traceback" not in r.stderr, bad
+        assert bad[-1] in r.stderr
+    assert not (tmp_path / "q").exists()
