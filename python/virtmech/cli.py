@@ -275,8 +275,9 @@ def cmd_quality(args) -> int:
 
 
 def _print_metrics(runs: dict) -> None:
+    w = max([16, *map(len, runs)])  # the names' column
     print(
-        f"{'scenario':<16} {'to 1 mm [s]':>11} {'max after [mm]':>14} {'max |f| [N]':>11} "
+        f"{'scenario':<{w}} {'to 1 mm [s]':>11} {'max after [mm]':>14} {'max |f| [N]':>11} "
         f"{'tau/limit':>9} {'passive':>8} {'E [mJ]':>8} {'x real':>7}"
     )
     from .sim.output import paper_order
@@ -292,7 +293,7 @@ def _print_metrics(runs: dict) -> None:
     for name in paper_order(runs):
         m = runs[name]
         print(
-            f"{name:<16} {cell(m['time_to_1mm_s'], 11, '.3f')} "
+            f"{name:<{w}} {cell(m['time_to_1mm_s'], 11, '.3f')} "
             f"{cell(m['dist_max_after_m'], 14, '.3f', 1e3)} {cell(m['force_max_n'], 11, '.2f')} "
             f"{cell(m['torque_fraction_max'], 9, '.2f')} {cell(m['passive_torque_max'], 8, '.2g')} "
             f"{cell(m['energy_to_user_j'], 8, '.2f', 1e3)} {cell(m['real_time_factor'], 7, '.1f')}"
