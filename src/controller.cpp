@@ -219,6 +219,11 @@ void watchdog(const ControllerModel& M, ControllerData& d, double t_s, CycleOutp
   if (std::isfinite(d.last_t) && (t_s - d.last_t > M.watchdog_s || t_s < d.last_t)) {
     out.status |= status::kWatchdog;
     d.ramp_count = 0;
+    // the torque the motors held over the gap is unknown (an amplifier may have dropped it):
+    // the energy tank starts afresh, as after a fault
+    d.energy = 0.0;
+    d.range_scale = 1.0;
+    d.have_last_torque = false;
   }
   d.last_t = t_s;
 }
@@ -419,17 +424,19 @@ double saturated_spring(const Vector6& e, const Vector6& f, double force_limit,
     const double s = norm > limit ? limit / norm : 1.0;
     energy += ef * (s - 0.5 * s * s);
   }
-  return energy;
+  // (an oblique projection can make e^T f negative: a spring holds no negative energy)
+  return std::max(energy, 0.0);
 }
 
 // Energy tank (docs/theory.md, "Passivity"). Its level is the energy the rendering has
-// absorbed: the motors' exact work over each cycle, the torque held (zero-order) times the
-// displacement, is taken from it. It starts with what the law's springs hold (their energy
-// at the start is the start's, brought in by the ramp-in) and holds at most that plus
-// passivity_max_energy_j. Eq. 26's range term is rendered in full while the level is not
-// below zero and fades out linearly as it falls to -passivity_fade_j: the motors never give
-// more than the user put in, plus that. The null-space term, a spring-damper about the
-// nearest placement, is rendered as it is.
+// absorbed: the motors' work over each cycle as the controller sees it, the torque held
+// (zero-order) times the measured displacement, is taken from it. It starts empty (also
+// after a fault or a watchdog trip: a restart must not hand the motors the energy of a
+// spring stretched meanwhile) and holds at most what the law's springs hold plus
+// passivity_max_energy_j. Eq. 26's range term is rendered
+// in full while the level is not below zero and fades out linearly as it falls to
+// -passivity_fade_j: the range term never gives more than the user put in, plus that. The
+// null-space term, a spring-damper about the nearest placement, is rendered as it is.
 void passivity(const ControllerModel& M, const Device& dev, ControllerData& d, const double* q,
                CycleOutput& out) noexcept {
   out.wrench_passivity.setZero();
@@ -452,6 +459,9 @@ void passivity(const ControllerModel& M, const Device& dev, ControllerData& d, c
     for (int i = 0; i < dev.dof(); ++i) work += d.last_torque[i] * (q[i] - d.last_q[i]);
     d.energy -= work;
   }
+  // at most the springs' energy and the reserve. No floor: a deficit is paid back before
+  // the range term comes back (with a floor, a released handle walks on: each bit of
+  // damping's refill brings the range term back for a moment)
   d.energy = std::min(d.energy, stored + M.passivity_max_energy);
   out.energy = d.energy;
   if (!M.under_actuated_term) return;

@@ -259,6 +259,13 @@ def cmd_quality(args) -> int:
             f"{args.scenario}: mechanism.type {s.data['mechanism']['type']!r}: quality measures "
             "PlanarArm, Probe, PointPivot and LineGuide"
         )
+    if not errors:  # what run checks before it simulates, before anything is written
+        from .sim.loop import preflight
+
+        try:
+            preflight(s)
+        except sc.ScenarioError as e:
+            errors += e.messages
     if errors:
         raise UserError(*errors)
     out = _out_dir(args.out or Path("out") / f"{s.name}-quality")
@@ -267,7 +274,7 @@ def cmd_quality(args) -> int:
     result = Q.measure(Q.Setup(s), workers=args.workers, stability_map_grid=grid)
     files = Q.write_report(result, out)
     if args.json:
-        print(json.dumps(result, indent=2, default=float))
+        print(Q.to_json(result))
     else:
         print("\n".join(Q.summary_lines(result)))
         print(f"wrote {out}/{', '.join(files)} ({time.perf_counter() - t0:.1f} s wall)")

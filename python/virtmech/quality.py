@@ -260,7 +260,8 @@ def stiffness(
     for d in out.values():
         f = max(forces)
         dev = d["deviation_m"][f"{f:g}"]
-        d["stiffness_n_per_m"] = float(f / dev) if dev > 0 else math.inf
+        # (a point that moved against the push: the device pushed back, no stiffness to give)
+        d["stiffness_n_per_m"] = float(f / dev) if dev > 0 else math.nan
     return out
 
 
@@ -300,9 +301,9 @@ def free_force(
         speed = np.linalg.norm(vel, axis=1)
         at = speed > 0.8 * v
         along = np.einsum("ij,ij->i", f[at], vel[at] / speed[at, None])
-        out[f"{v:g}"] = {
-            "mean_n": float(along.mean()),
-            "peak_n": float(np.abs(along).max()),
+        out[f"{v:g}"] = {  # NaN where the handle never reached the speed
+            "mean_n": float(along.mean()) if along.size else math.nan,
+            "peak_n": float(np.abs(along).max()) if along.size else math.nan,
             "cycles": int(at.sum()),
         }
     return out
@@ -398,16 +399,19 @@ def _tap_spec(axis: np.ndarray) -> tuple[list[dict], float]:
 
 
 def limit_cycle(run: Run) -> dict:
-    """Sustained oscillation at the end of a run: the rms of the device force's AC part in
-    the last window and in the window before it. A limit cycle where the last is above
-    LIMIT_CYCLE_RMS_N and has not decayed below LIMIT_CYCLE_PERSISTENCE of the one before;
-    quiet where it is at most QUIET_RMS_N."""
+    """Sustained oscillation at the end of a run: the rms of the device force's AC part
+    (about its linear trend) in the last window and in the window before it. A limit cycle
+    where the last is above LIMIT_CYCLE_RMS_N and has not decayed below
+    LIMIT_CYCLE_PERSISTENCE of the one before; quiet where it is at most QUIET_RMS_N."""
     f = np.stack([run.cols["fx"], run.cols["fy"], run.cols["fz"]], axis=1)
     t_end, w = run.t[-1], LIMIT_CYCLE_WINDOW_S
 
-    def rms(t0, t1):
-        x = f[_window(run.t, t0, t1)]
-        return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
+    def rms(t0, t1):  # about the window's linear trend (a drift is no oscillation)
+        w_ = _window(run.t, t0, t1)
+        t, x = run.t[w_], f[w_]
+        A = np.stack([np.ones_like(t), t - t.mean()], axis=1)
+        x = x - A @ np.linalg.lstsq(A, x, rcond=None)[0]
+        return float(np.sqrt(np.mean(np.sum(x**2, axis=1))))
 
     last, before = rms(t_end - w, t_end + 1e-9), rms(t_end - 2 * w, t_end - w)
     cycle = last > LIMIT_CYCLE_RMS_N and last >= LIMIT_CYCLE_PERSISTENCE * before
@@ -523,7 +527,8 @@ def fidelity(setup: Setup, workers: int | None = 1) -> dict:
         "law": "null_space",
         "passivity": "off",
     }
-    raw = {key: v for key, v in setup.scenario.raw.items() if key != "checks"}
+    # the setup's scenario (its hand included) with the scenario's own intents
+    raw = {**setup.raw, "intent": setup.scenario.raw.get("intent", [])}
     controllers = {
         "eq. 11": {**base, "law": "null_space", "passivity": "off"},
         "eq. 26": {**base, "law": "under_actuated", "passivity": "off"},
@@ -626,17 +631,36 @@ def summary_lines(result: dict) -> list[str]:
     if "stability_map" in result:
         m = result["stability_map"]
         lines.append("  stability map (Kp N/mm x Kv N·s/m; + free of limit cycles):")
-        lines.append("    " + " ".join(f"{v:>5g}" for v in m["kv"]))
+        lines.append("    " + " " * 4 + " ".join(f"{v:>5g}" for v in m["kv"]))
         for kp, row in zip(m["kp"], m["stable"]):
             lines.append(f"    {kp / 1e3:4.1f} " + " ".join(f"{'+' if s else 'x':>5}" for s in row))
     return lines
+
+
+def _finite(x):
+    """x with every non-finite number None (JSON has no NaN or infinity)."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def to_json(result: dict) -> str:
+    """The result as strict JSON: a figure that does not apply (NaN) is null."""
+    import json
+
+    return json.dumps(_finite(result), indent=2, allow_nan=False)
 
 
 def write_report(result: dict, out) -> list[str]:
     """quality.json, fidelity.png, stability_map.png (when measured) and index.html in the
     folder `out`; returns the files written."""
     import html
-    import json
     from pathlib import Path
 
     import matplotlib
@@ -647,7 +671,7 @@ def write_report(result: dict, out) -> list[str]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     files = ["quality.json"]
-    (out / "quality.json").write_text(json.dumps(result, indent=2, default=float) + "\n")
+    (out / "quality.json").write_text(to_json(result) + "\n")
     if "fidelity" in result:
         fig, ax = plt.subplots(figsize=(6, 3.2))
         errs = [result["fidelity"][law]["relative_rms_error"] for law in LAWS]

@@ -1,7 +1,8 @@
 """The energy tank of the cycle (docs/theory.md, "Passivity"), against its definitions: the
-motors' work is the torque held over a cycle times the joints' displacement; the tank holds
-what the rendering absorbed less what the null-space spring stores; eq. 26's range term
-fades out as the tank empties."""
+motors' work is the torque held over a cycle times the joints' displacement; the tank's
+level is zero at the start minus that work, held at most at what the law's springs store
+plus the reserve; eq. 26's range term fades out as the level falls
+below zero."""
 
 from __future__ import annotations
 
@@ -41,7 +42,7 @@ def saturated(e, f, force_limit, moment_limit) -> float:
 
 @pytest.mark.parametrize("name", CASES)
 def test_the_tank_starts_empty_and_loses_the_motors_work(name):
-    c, q, dq = motion(name, passivity_max_energy_j=math.inf)
+    c, q, dq = motion(name, passivity_max_energy_j=math.inf)  # no cap
     work = 0.0  # the motors' work so far: tau_k held from q_k to q_(k+1)
     tau_prev = None
     for k in range(N):
@@ -132,6 +133,16 @@ def test_off_renders_the_laws_and_reports_no_energy():
         np.testing.assert_allclose(off.wrench_null, on.wrench_null, atol=1e-12)
         differ += not np.allclose(off.torque, on.torque, atol=1e-12)
     assert differ > 10  # ... where the tank held the range term back, and only the torque
+
+
+def test_a_watchdog_trip_starts_the_tank_afresh():
+    c, q, dq = motion("planar3r+planar_arm", watchdog_s=0.01)
+    t, k = 0.0, 0
+    while c.step(q[k], dq[k], t).energy < 1e-4:
+        k, t = k + 1, t + 1e-3
+    out = c.step(q[k + 1], dq[k + 1], t + 0.1)  # a 0.1 s gap
+    assert out.status & vm.status.WATCHDOG
+    assert out.energy == 0.0
 
 
 def test_a_fault_starts_the_tank_afresh():
