@@ -168,7 +168,7 @@ std::vector<double> sample_parameters(const Eigen::VectorXd& U, int n, int p, in
   return s;
 }
 
-int samples_per_span(int p) { return std::max(4, 2 * p); }
+int samples_per_span(int p) { return std::max(6, 2 * p); }
 
 // ---- closest point: projected Newton with Levenberg-Marquardt safeguard ----------------
 
@@ -232,20 +232,30 @@ double refine(Eigen::Matrix<double, N, 1>& x, const Eigen::Matrix<double, N, 1>&
       if (!free[i]) d[i] = 0.0;
     if (!d.allFinite()) break;
     const bool small = (d.cwiseAbs().array() <= 1e-7 * scale.array()).all() && mu == 0.0;
-    double t = 1.0;
     Vec xn;
     Vec gn;
     Mat Hn;
     double fn = 0.0;
-    bool accepted = false;
-    for (int ls = 0; ls < 60; ++ls) {
-      xn = (x + t * d).cwiseMax(lo).cwiseMin(hi);
-      fn = eval(xn, gn, Hn);
-      if (fn <= f + 1e-4 * g.dot(xn - x) || (small && t == 1.0)) {
-        accepted = true;
-        break;
+    // backtracking (Armijo) along the projected direction dir
+    auto search = [&](const Vec& dir, bool full_ok) {
+      double t = 1.0;
+      for (int ls = 0; ls < 60; ++ls) {
+        xn = (x + t * dir).cwiseMax(lo).cwiseMin(hi);
+        if (xn == x) return false;  // the step vanished: no progress along dir
+        fn = eval(xn, gn, Hn);
+        if (fn <= f + 1e-4 * g.dot(xn - x) || (full_ok && t == 1.0)) return true;
+        t *= 0.5;
       }
-      t *= 0.5;
+      return false;
+    };
+    bool accepted = search(d, small);
+    // across a crease (a knot of full multiplicity) the one-sided Hessian misleads the
+    // coupled step: one coordinate at a time
+    for (int i = 0; i < N && !accepted && N > 1; ++i) {
+      if (!free[i] || g[i] == 0.0) continue;
+      Vec di = Vec::Zero();
+      di[i] = -g[i] / std::max(H(i, i), 1e-3 * lmax);
+      accepted = search(di, false);
     }
     if (!accepted) break;
     const Vec step = xn - x;
@@ -265,6 +275,8 @@ struct Best {
   double d2[K];
   int count = 0;
   void add(int i, double d) noexcept {
+    for (int j = 0; j < count; ++j)
+      if (index[j] == i) return;  // the same start twice
     int pos = count < K ? count : K;
     while (pos > 0 && d2[pos - 1] > d) --pos;
     if (pos >= K) return;
@@ -278,7 +290,7 @@ struct Best {
   }
 };
 
-constexpr int kCandidates = 6;
+constexpr int kCandidates = 12;
 
 Eigen::Vector3d safe_normalized(const Eigen::Vector3d& v, const char* name) {
   const double n = v.norm();
@@ -373,8 +385,20 @@ NurbsCurve::NurbsCurve(const Eigen::MatrixX3d& control_points, const Eigen::Vect
     pw_(3, i) = weights[i];
   }
   sample_u_ = sample_parameters(knots_, n_, p_, samples_per_span(p_));
-  sample_p_.reserve(sample_u_.size());
+  const size_t ns = sample_u_.size();
+  sample_p_.reserve(ns);
   for (double u : sample_u_) sample_p_.push_back(evaluate(u));
+  sample_d_start_.resize(ns - 1);
+  sample_d_end_.resize(ns - 1);
+  CurveDerivatives d;
+  for (size_t i = 0; i + 1 < ns; ++i) {
+    const int span =
+        find_span(knots_.data(), n_, p_, 0.5 * (sample_u_[i] + sample_u_[i + 1]));
+    derivatives_in_span(sample_u_[i], span, 1, d);
+    sample_d_start_[i] = d.col(1);
+    derivatives_in_span(sample_u_[i + 1], span, 1, d);
+    sample_d_end_[i] = d.col(1);
+  }
 }
 
 Eigen::MatrixX3d NurbsCurve::control_points() const {
@@ -392,10 +416,14 @@ Eigen::Vector3d NurbsCurve::evaluate(double u) const noexcept {
 }
 
 void NurbsCurve::derivatives(double u, int order, CurveDerivatives& out) const noexcept {
-  const int nd = clamp_order(order);
   u = clamp(u, lower_, upper_);
+  derivatives_in_span(u, find_span(knots_.data(), n_, p_, u), order, out);
+}
+
+void NurbsCurve::derivatives_in_span(double u, int span, int order,
+                                     CurveDerivatives& out) const noexcept {
+  const int nd = clamp_order(order);
   const double* U = knots_.data();
-  const int span = find_span(U, n_, p_, u);
   double ders[kD][kP];
   basis_derivatives(U, span, p_, u, nd, ders);
   // A3.2 on the homogeneous points
@@ -414,19 +442,39 @@ void NurbsCurve::derivatives(double u, int order, CurveDerivatives& out) const n
 }
 
 double NurbsCurve::closest_point(const Eigen::Vector3d& p, Eigen::Vector3d& point) const noexcept {
-  const int ns = static_cast<int>(sample_u_.size());
-  Best<kCandidates> best;
+  // Brackets: a sample interval whose f' = C'.(C - p) is < 0 at its start and > 0 at its
+  // end (one-sided derivatives, so kinks at knots count) holds a local minimum; so does a
+  // sample where f' changes sign across it (a kink), and an end where f' points outward.
+  const int ni = static_cast<int>(sample_u_.size()) - 1;  // intervals
   auto d2 = [&](int i) { return (sample_p_[static_cast<size_t>(i)] - p).squaredNorm(); };
-  for (int i = 0; i < ns; ++i) {
+  auto g_start = [&](int i) {
+    return sample_d_start_[static_cast<size_t>(i)].dot(sample_p_[static_cast<size_t>(i)] - p);
+  };
+  auto g_end = [&](int i) {
+    return sample_d_end_[static_cast<size_t>(i)].dot(sample_p_[static_cast<size_t>(i) + 1] - p);
+  };
+  // candidate index 4 i + kind: kind 0 the sample i itself (a kink or an end), 1 interval i
+  // (a bracket), 2 / 3 interval i from its start / end (a sample that is a discrete local
+  // minimum of the distance, refined on its downhill side: a dip between samples whose
+  // derivatives agree in sign)
+  Best<kCandidates> best;
+  for (int i = 0; i <= ni; ++i) {
+    const bool left_ok = i == 0 || g_end(i - 1) <= 0.0;
+    const bool right_ok = i == ni || g_start(i) >= 0.0;
     const double di = d2(i);
-    if ((i > 0 && d2(i - 1) < di) || (i + 1 < ns && d2(i + 1) < di)) continue;
-    best.add(i, di);
+    if (left_ok && right_ok) best.add(4 * i, di);
+    if (i < ni && g_start(i) < 0.0 && g_end(i) > 0.0)
+      best.add(4 * i + 1, std::min(di, d2(i + 1)));
+    if ((i == 0 || d2(i - 1) >= di) && (i == ni || d2(i + 1) >= di)) {
+      if (i < ni && !right_ok) best.add(4 * i + 2, di);
+      if (i > 0 && !left_ok) best.add(4 * (i - 1) + 3, di);
+    }
   }
   using V1 = Eigen::Matrix<double, 1, 1>;
-  const V1 lo = V1::Constant(lower_), hi = V1::Constant(upper_);
+  int span = p_;  // the bracket's knot span: one-sided derivatives at its ends
   auto eval = [&](const V1& x, V1& g, Eigen::Matrix<double, 1, 1>& H) {
     CurveDerivatives d;
-    derivatives(x[0], 2, d);
+    derivatives_in_span(x[0], span, 2, d);
     const Eigen::Vector3d r = d.col(0) - p;
     g[0] = d.col(1).dot(r);
     H(0, 0) = d.col(1).squaredNorm() + d.col(2).dot(r);
@@ -434,11 +482,24 @@ double NurbsCurve::closest_point(const Eigen::Vector3d& p, Eigen::Vector3d& poin
   };
   double best_f = kInf, best_u = lower_;
   for (int c = 0; c < best.count; ++c) {
-    V1 x = V1::Constant(sample_u_[static_cast<size_t>(best.index[c])]);
-    const double f = refine<1>(x, lo, hi, eval);
+    const int k = best.index[c];
+    const int i = k / 4, kind = k % 4;
+    double u = sample_u_[static_cast<size_t>(i)];
+    double f = 0.5 * best.d2[c];
+    if (kind != 0) {
+      const V1 lo = V1::Constant(sample_u_[static_cast<size_t>(i)]);
+      const V1 hi = V1::Constant(sample_u_[static_cast<size_t>(i) + 1]);
+      span = find_span(knots_.data(), n_, p_, 0.5 * (lo[0] + hi[0]));
+      // a bracket from inside, nearer its closer end (at a knot the derivatives past the
+      // bracket's end may differ); else from the sample
+      const double t = kind == 1 ? (d2(i) <= d2(i + 1) ? 0.25 : 0.75) : (kind == 2 ? 0.0 : 1.0);
+      V1 x = V1::Constant(lo[0] + t * (hi[0] - lo[0]));
+      f = refine<1>(x, lo, hi, eval);
+      u = x[0];
+    }
     if (f < best_f) {
       best_f = f;
-      best_u = x[0];
+      best_u = u;
     }
   }
   point = evaluate(best_u);
@@ -491,8 +552,17 @@ NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::
   sample_u_ = sample_parameters(knots_u_, nu_, p_, samples_per_span(p_));
   sample_v_ = sample_parameters(knots_v_, nv_, q_, samples_per_span(q_));
   sample_p_.reserve(sample_u_.size() * sample_v_.size());
-  for (double u : sample_u_)
-    for (double v : sample_v_) sample_p_.push_back(evaluate(u, v));
+  sample_su_.reserve(sample_p_.capacity());
+  sample_sv_.reserve(sample_p_.capacity());
+  SurfaceDerivatives d;
+  for (double u : sample_u_) {
+    for (double v : sample_v_) {
+      derivatives(u, v, 1, d);
+      sample_p_.push_back(d(0, 0));
+      sample_su_.push_back(d(1, 0));
+      sample_sv_.push_back(d(0, 1));
+    }
+  }
 }
 
 Eigen::MatrixX3d NurbsSurface::control_points() const {
@@ -561,6 +631,18 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
   auto d2 = [&](int i, int j) {
     return (sample_p_[static_cast<size_t>(i) * mv + j] - p).squaredNorm();
   };
+  auto gu = [&](int i, int j) {
+    const size_t k = static_cast<size_t>(i) * mv + j;
+    return sample_su_[k].dot(sample_p_[k] - p);
+  };
+  auto gv = [&](int i, int j) {
+    const size_t k = static_cast<size_t>(i) * mv + j;
+    return sample_sv_[k].dot(sample_p_[k] - p);
+  };
+  // Candidates (index i * mv + j, the start): (1) samples that are discrete local minima of
+  // the distance; (2) cells whose corners' gradients change sign in u and in v (a minimum
+  // inside), started at the nearest corner; (3) along the four edges, sample intervals
+  // whose tangential gradient changes sign (a minimum on or near the edge).
   Best<kCandidates> best;
   for (int i = 0; i < mu; ++i) {
     for (int j = 0; j < mv; ++j) {
@@ -573,7 +655,34 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
             break;
           }
       if (local_min) best.add(i * mv + j, dij);
+      if (i + 1 < mu && j + 1 < mv) {
+        double umin = kInf, umax = -kInf, vmin = kInf, vmax = -kInf, dmin = kInf;
+        int start = 0;
+        for (int a = i; a <= i + 1; ++a) {
+          for (int b = j; b <= j + 1; ++b) {
+            const double x = gu(a, b), y = gv(a, b), dd = d2(a, b);
+            umin = std::min(umin, x), umax = std::max(umax, x);
+            vmin = std::min(vmin, y), vmax = std::max(vmax, y);
+            if (dd < dmin) dmin = dd, start = a * mv + b;
+          }
+        }
+        if (umin <= 0.0 && umax >= 0.0 && vmin <= 0.0 && vmax >= 0.0) best.add(start, dmin);
+      }
     }
+  }
+  for (int e = 0; e < 2; ++e) {
+    const int i = e == 0 ? 0 : mu - 1;
+    for (int j = 0; j + 1 < mv; ++j)
+      if (gv(i, j) <= 0.0 && gv(i, j + 1) >= 0.0) {
+        const bool first = d2(i, j) <= d2(i, j + 1);
+        best.add(i * mv + (first ? j : j + 1), std::min(d2(i, j), d2(i, j + 1)));
+      }
+    const int j = e == 0 ? 0 : mv - 1;
+    for (int a = 0; a + 1 < mu; ++a)
+      if (gu(a, j) <= 0.0 && gu(a + 1, j) >= 0.0) {
+        const bool first = d2(a, j) <= d2(a + 1, j);
+        best.add((first ? a : a + 1) * mv + j, std::min(d2(a, j), d2(a + 1, j)));
+      }
   }
   auto eval = [&](const Eigen::Vector2d& x, Eigen::Vector2d& g, Eigen::Matrix2d& H) {
     SurfaceDerivatives d;
@@ -595,6 +704,21 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
       best_f = f;
       best_x = x;
     }
+  }
+  // polish: along a crease (a knot of full multiplicity) the coupled steps zigzag; the
+  // 1-D problems with u, then v held, then both free again settle them
+  for (int round = 0; round < 3 && best.count > 0; ++round) {
+    const double f0 = best_f;
+    for (int fixed = 0; fixed < 3; ++fixed) {
+      Eigen::Vector2d lo = lower_, hi = upper_, x = best_x;
+      if (fixed < 2) lo[fixed] = hi[fixed] = x[fixed];
+      const double f = refine<2>(x, lo, hi, eval);
+      if (f < best_f) {
+        best_f = f;
+        best_x = x;
+      }
+    }
+    if (!(best_f < f0)) break;
   }
   point = evaluate(best_x[0], best_x[1]);
   return best_x;

@@ -114,12 +114,17 @@ class NurbsCurve final : public Curve {
   const Eigen::VectorXd& knots() const noexcept { return knots_; }
 
  private:
+  // derivatives with the basis functions of knot span `span` (a one-sided limit at a knot)
+  void derivatives_in_span(double u, int span, int order, CurveDerivatives& d) const noexcept;
+
   int n_ = 0, p_ = 1;
   Eigen::Matrix4Xd pw_;  // homogeneous control points (w x, w y, w z, w)
   Eigen::VectorXd knots_;
   double lower_ = 0.0, upper_ = 1.0;
-  std::vector<double> sample_u_;        // closest point: the samples' parameters
-  std::vector<Eigen::Vector3d> sample_p_;  // and points
+  // closest point: the samples' parameters and points; the first derivative at the start
+  // of interval i (from the right) and at its end (from the left), i < samples - 1
+  std::vector<double> sample_u_;
+  std::vector<Eigen::Vector3d> sample_p_, sample_d_start_, sample_d_end_;
 };
 
 /// A tensor-product NURBS surface of degrees (p, q) with nu x nv control points.
@@ -155,7 +160,8 @@ class NurbsSurface final : public Surface {
   Eigen::VectorXd knots_u_, knots_v_;
   Eigen::Vector2d lower_, upper_;
   std::vector<double> sample_u_, sample_v_;
-  std::vector<Eigen::Vector3d> sample_p_;  // index i * sample_v_.size() + j
+  // index i * sample_v_.size() + j: the point and its first derivatives S_u, S_v
+  std::vector<Eigen::Vector3d> sample_p_, sample_su_, sample_sv_;
 };
 
 /// Sphere S(u, v) = c + r (cos u cos v, sin u cos v, sin v): u the longitude in [-pi, pi],
