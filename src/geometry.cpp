@@ -168,7 +168,7 @@ std::vector<double> sample_parameters(const Eigen::VectorXd& U, int n, int p, in
   return s;
 }
 
-int samples_per_span(int p) { return std::max(6, 2 * p); }
+int samples_per_span(int p) { return std::max(8, 2 * p); }
 
 // ---- closest point: projected Newton with Levenberg-Marquardt safeguard ----------------
 
@@ -466,8 +466,8 @@ double NurbsCurve::closest_point(const Eigen::Vector3d& p, Eigen::Vector3d& poin
     if (i < ni && g_start(i) < 0.0 && g_end(i) > 0.0)
       best.add(4 * i + 1, std::min(di, d2(i + 1)));
     if ((i == 0 || d2(i - 1) >= di) && (i == ni || d2(i + 1) >= di)) {
-      if (i < ni && !right_ok) best.add(4 * i + 2, di);
-      if (i > 0 && !left_ok) best.add(4 * (i - 1) + 3, di);
+      if (i < ni) best.add(4 * i + 2, di);
+      if (i > 0) best.add(4 * (i - 1) + 3, di);
     }
   }
   using V1 = Eigen::Matrix<double, 1, 1>;
@@ -492,7 +492,10 @@ double NurbsCurve::closest_point(const Eigen::Vector3d& p, Eigen::Vector3d& poin
       span = find_span(knots_.data(), n_, p_, 0.5 * (lo[0] + hi[0]));
       // a bracket from inside, nearer its closer end (at a knot the derivatives past the
       // bracket's end may differ); else from the sample
-      const double t = kind == 1 ? (d2(i) <= d2(i + 1) ? 0.25 : 0.75) : (kind == 2 ? 0.0 : 1.0);
+      // (a sample whose derivative points away from the interval: from its middle, for a
+      // dip the samples straddle)
+      double t = kind == 1 ? (d2(i) <= d2(i + 1) ? 0.25 : 0.75) : (kind == 2 ? 0.0 : 1.0);
+      if ((kind == 2 && g_start(i) >= 0.0) || (kind == 3 && g_end(i) <= 0.0)) t = 0.5;
       V1 x = V1::Constant(lo[0] + t * (hi[0] - lo[0]));
       f = refine<1>(x, lo, hi, eval);
       u = x[0];
