@@ -334,3 +334,34 @@ def test_surface_and_shape_bad_inputs():
         vm.Plane([0, 0, 0], [0, 0])
     with pytest.raises(ValueError, match="order"):
         vm.Sphere([0, 0, 0], 1.0).derivatives(0, 0, -1)
+
+
+def test_closest_point_never_worse_than_a_dense_grid():
+    """Creases (degree 1, knots of full multiplicity), dips and spikes (a weight of 50)."""
+    rng = np.random.default_rng(1)
+    g = np.linspace(0, 1, 151)
+    for trial in range(6):
+        p, q = (1, 1) if trial < 2 else tuple(int(k) for k in rng.integers(1, 5, 2))
+        P, w, Uu, Uv = random_surface(rng, p, q)
+        if trial % 2:
+            i, j = rng.integers(0, w.shape[0]), rng.integers(0, w.shape[1])
+            w[i, j] = 50.0
+            P[i, j, 2] += 1.0
+        s = vm.NurbsSurface(P, w, Uu, Uv, p, q)
+        pts = np.array([[s.evaluate(u, v) for v in g] for u in g]).reshape(-1, 3)
+        for _ in range(10):
+            x = np.array([*rng.uniform(-0.5, 1.5, 2), rng.uniform(-1, 1.5)])
+            _, point = s.closest_point(x)
+            assert np.linalg.norm(point - x) <= np.min(np.linalg.norm(pts - x, axis=1)) + 1e-12
+    gc = np.linspace(0, 1, 5001)
+    for trial in range(8):
+        p = 1 if trial < 2 else int(rng.integers(1, 5))
+        P, w, U = random_curve(rng, p, n=p + 6)
+        if trial % 2:
+            w[rng.integers(0, len(w))] = 50.0
+        c = vm.NurbsCurve(P, w, U, p)
+        pts = np.array([c.evaluate(u) for u in gc])
+        for _ in range(10):
+            x = rng.uniform(-1.2, 1.2, 3)
+            _, point = c.closest_point(x)
+            assert np.linalg.norm(point - x) <= np.min(np.linalg.norm(pts - x, axis=1)) + 1e-12
