@@ -4,6 +4,7 @@
 #include "virtmech/controller.hpp"
 #include "virtmech/device.hpp"
 #include "virtmech/filters.hpp"
+#include "virtmech/geometry.hpp"
 #include "virtmech/kinematic_chain.hpp"
 #include "virtmech/mechanism.hpp"
 #include "virtmech/se3.hpp"

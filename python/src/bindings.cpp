@@ -19,6 +19,9 @@ namespace nb = nanobind;
 using namespace nb::literals;
 using namespace virtmech;
 
+// python/src/bind_geometry.cpp: curves and surfaces
+void bind_geometry(nb::module_& m);
+
 namespace {
 
 struct PlacementResult {
@@ -379,6 +382,7 @@ NB_MODULE(_core, m) {
     d["passivity_fade_j"] = s.passivity_fade_j;
     m.attr("CONTROLLER_DEFAULTS") = d;
   }
+  bind_geometry(m);
   m.def("status_names", &status_names, "status"_a, "Names of the bits set in a status word.");
 
   // --- math

@@ -1,0 +1,237 @@
+// Geometry objects: curves and surfaces evaluated with derivatives, for mechanisms that
+// follow a shape (a probe on a surface, a guide along a curve).
+//
+// NURBS after Piegl & Tiller, The NURBS Book, 2nd ed., 1997 (docs/geometry.md): find span
+// (A2.1), basis functions and their derivatives (A2.3), curve and surface derivatives
+// (A3.2, A3.6) of the homogeneous form, rational derivatives (A4.2, A4.4). Analytic
+// shapes: Sphere, Cylinder, Plane with the parametrisations documented on each class.
+//
+// Every evaluation method is const, noexcept and allocation-free: work arrays are
+// fixed-size on the stack (degree <= kMaxNurbsDegree, checked by the constructors), and
+// closest_point searches samples computed at construction. The objects are immutable after
+// construction, so one object may be evaluated from several threads at once.
+//
+// Derivative orders: `derivatives` fills orders 0..order with order <= kMaxDerivativeOrder
+// (a larger order is clamped). The real-time users need order 2 at most (position,
+// tangents, curvature); the higher orders are there for testing and the Python API.
+#pragma once
+
+#include <vector>
+
+#include "virtmech/types.hpp"
+
+namespace virtmech {
+
+/// Largest NURBS degree (fixed-size work arrays).
+constexpr int kMaxNurbsDegree = 7;
+/// Largest derivative order `derivatives` computes.
+constexpr int kMaxDerivativeOrder = kMaxNurbsDegree;
+
+/// Column k: the k-th derivative d^k C / du^k (column 0 the point).
+using CurveDerivatives = Eigen::Matrix<double, 3, kMaxDerivativeOrder + 1>;
+
+/// Partial derivatives of a surface: (k, l) = d^(k+l) S / du^k dv^l ((0, 0) the point).
+/// `derivatives(..., order, d)` fills every (k, l) with k, l <= order, mixed orders up to
+/// 2 order included (geomdl's convention).
+struct SurfaceDerivatives {
+  static constexpr int kSize = kMaxDerivativeOrder + 1;
+  Eigen::Vector3d d[kSize][kSize];
+  Eigen::Vector3d& operator()(int k, int l) noexcept { return d[k][l]; }
+  const Eigen::Vector3d& operator()(int k, int l) const noexcept { return d[k][l]; }
+};
+
+/// Mean and Gaussian curvature of a surface [1/m, 1/m^2], signed with respect to normal():
+/// a sphere with outward normals has mean curvature -1/r.
+struct SurfaceCurvature {
+  double mean = 0.0;
+  double gaussian = 0.0;
+};
+
+/// A parametric curve C(u), u in [lower(), upper()] (interface).
+class Curve {
+ public:
+  virtual ~Curve() = default;
+  /// Parameter bounds; parameters outside are clamped to them.
+  virtual double lower() const noexcept = 0;
+  virtual double upper() const noexcept = 0;
+  /// The point C(u).
+  virtual Eigen::Vector3d evaluate(double u) const noexcept = 0;
+  /// Columns 0..order of d: C(u) and its derivatives (order clamped to
+  /// [0, kMaxDerivativeOrder]; the other columns are left as they were).
+  virtual void derivatives(double u, int order, CurveDerivatives& d) const noexcept = 0;
+  /// The parameter of the point of the curve closest to p; the point in `point`.
+  virtual double closest_point(const Eigen::Vector3d& p, Eigen::Vector3d& point) const noexcept = 0;
+
+  /// Unit tangent C'/|C'| (zero where C' vanishes).
+  Eigen::Vector3d tangent(double u) const noexcept;
+  /// Curvature |C' x C''| / |C'|^3 [1/m] (0 where C' vanishes).
+  double curvature(double u) const noexcept;
+};
+
+/// A parametric surface S(u, v), (u, v) within [lower(), upper()] (interface).
+class Surface {
+ public:
+  virtual ~Surface() = default;
+  /// Parameter bounds (u, v); may be infinite. Parameters outside are clamped to them.
+  virtual Eigen::Vector2d lower() const noexcept = 0;
+  virtual Eigen::Vector2d upper() const noexcept = 0;
+  /// The point S(u, v).
+  virtual Eigen::Vector3d evaluate(double u, double v) const noexcept = 0;
+  /// d(k, l) = d^(k+l) S / du^k dv^l for k, l in 0..order (order clamped to
+  /// [0, kMaxDerivativeOrder]), as geomdl: the mixed ones up to k + l = 2 order included.
+  virtual void derivatives(double u, double v, int order,
+                           SurfaceDerivatives& d) const noexcept = 0;
+  /// Unit normal. The default: S_u x S_v normalised (at a degenerate point, such as a
+  /// collapsed edge, taken a little inside the patch).
+  virtual Eigen::Vector3d normal(double u, double v) const noexcept;
+  /// The parameters (u, v) of the point of the surface closest to p; the point in `point`.
+  virtual Eigen::Vector2d closest_point(const Eigen::Vector3d& p,
+                                        Eigen::Vector3d& point) const noexcept = 0;
+
+  /// Mean and Gaussian curvature from the fundamental forms, with respect to normal().
+  SurfaceCurvature curvature(double u, double v) const noexcept;
+};
+
+/// A NURBS curve of degree p with n control points, weights and n + p + 1 knots.
+class NurbsCurve final : public Curve {
+ public:
+  /// control_points (n, 3) [m]; weights (n,) > 0; knots: n + degree + 1 non-decreasing
+  /// values (clamped or not; a knot's multiplicity at most degree + 1); 1 <= degree <=
+  /// kMaxNurbsDegree, n >= degree + 1. Throws std::invalid_argument naming the parameter.
+  NurbsCurve(const Eigen::MatrixX3d& control_points, const Eigen::VectorXd& weights,
+             const Eigen::VectorXd& knots, int degree);
+
+  double lower() const noexcept override { return lower_; }
+  double upper() const noexcept override { return upper_; }
+  Eigen::Vector3d evaluate(double u) const noexcept override;
+  void derivatives(double u, int order, CurveDerivatives& d) const noexcept override;
+  double closest_point(const Eigen::Vector3d& p, Eigen::Vector3d& point) const noexcept override;
+
+  int degree() const noexcept { return p_; }
+  int size() const noexcept { return n_; }
+  Eigen::MatrixX3d control_points() const;
+  Eigen::VectorXd weights() const;
+  const Eigen::VectorXd& knots() const noexcept { return knots_; }
+
+ private:
+  // derivatives with the basis functions of knot span `span` (a one-sided limit at a knot)
+  void derivatives_in_span(double u, int span, int order, CurveDerivatives& d) const noexcept;
+
+  int n_ = 0, p_ = 1;
+  Eigen::Matrix4Xd pw_;  // homogeneous control points (w x, w y, w z, w)
+  Eigen::VectorXd knots_;
+  double lower_ = 0.0, upper_ = 1.0;
+  // closest point: the samples' parameters and points; the first derivative at the start
+  // of interval i (from the right) and at its end (from the left), i < samples - 1
+  std::vector<double> sample_u_;
+  std::vector<Eigen::Vector3d> sample_p_, sample_d_start_, sample_d_end_;
+};
+
+/// A tensor-product NURBS surface of degrees (p, q) with nu x nv control points.
+class NurbsSurface final : public Surface {
+ public:
+  /// control_points (nu * nv, 3), row i * nv + j the point P_ij [m]; weights (nu, nv) > 0
+  /// (its shape gives nu, nv); knots_u: nu + degree_u + 1 values, knots_v: nv + degree_v +
+  /// 1 (non-decreasing, multiplicity at most degree + 1); 1 <= degree <= kMaxNurbsDegree.
+  /// Throws std::invalid_argument naming the parameter.
+  NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::MatrixXd& weights,
+               const Eigen::VectorXd& knots_u, const Eigen::VectorXd& knots_v, int degree_u,
+               int degree_v);
+
+  Eigen::Vector2d lower() const noexcept override { return lower_; }
+  Eigen::Vector2d upper() const noexcept override { return upper_; }
+  Eigen::Vector3d evaluate(double u, double v) const noexcept override;
+  void derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept override;
+  Eigen::Vector2d closest_point(const Eigen::Vector3d& p,
+                                Eigen::Vector3d& point) const noexcept override;
+
+  int degree_u() const noexcept { return p_; }
+  int degree_v() const noexcept { return q_; }
+  int size_u() const noexcept { return nu_; }
+  int size_v() const noexcept { return nv_; }
+  Eigen::MatrixX3d control_points() const;
+  Eigen::MatrixXd weights() const;
+  const Eigen::VectorXd& knots_u() const noexcept { return knots_u_; }
+  const Eigen::VectorXd& knots_v() const noexcept { return knots_v_; }
+
+ private:
+  int nu_ = 0, nv_ = 0, p_ = 1, q_ = 1;
+  Eigen::Matrix4Xd pw_;  // column i * nv + j
+  Eigen::VectorXd knots_u_, knots_v_;
+  Eigen::Vector2d lower_, upper_;
+  std::vector<double> sample_u_, sample_v_;
+  // index i * sample_v_.size() + j: the point and its first derivatives S_u, S_v
+  std::vector<Eigen::Vector3d> sample_p_, sample_su_, sample_sv_;
+};
+
+/// Sphere S(u, v) = c + r (cos u cos v, sin u cos v, sin v): u the longitude in [-pi, pi],
+/// v the latitude in [-pi/2, pi/2]; the normal points outward.
+class Sphere final : public Surface {
+ public:
+  /// radius > 0. Throws std::invalid_argument naming the parameter.
+  Sphere(const Eigen::Vector3d& center, double radius);
+  Eigen::Vector2d lower() const noexcept override;
+  Eigen::Vector2d upper() const noexcept override;
+  Eigen::Vector3d evaluate(double u, double v) const noexcept override;
+  void derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept override;
+  Eigen::Vector3d normal(double u, double v) const noexcept override;
+  /// For p at the centre: the point at (u, v) = (0, 0).
+  Eigen::Vector2d closest_point(const Eigen::Vector3d& p,
+                                Eigen::Vector3d& point) const noexcept override;
+  const Eigen::Vector3d& center() const noexcept { return c_; }
+  double radius() const noexcept { return r_; }
+
+ private:
+  Eigen::Vector3d c_;
+  double r_;
+};
+
+/// Infinite circular cylinder S(u, v) = a + r (cos u e1 + sin u e2) + v d: d the unit axis
+/// direction, e1 = d.unitOrthogonal() (Eigen's), e2 = d x e1; u the angle in [-pi, pi], v
+/// the axial coordinate [m] (unbounded). The normal points away from the axis.
+class Cylinder final : public Surface {
+ public:
+  /// direction: non-zero (normalised); radius > 0. Throws std::invalid_argument.
+  Cylinder(const Eigen::Vector3d& point, const Eigen::Vector3d& direction, double radius);
+  Eigen::Vector2d lower() const noexcept override;
+  Eigen::Vector2d upper() const noexcept override;
+  Eigen::Vector3d evaluate(double u, double v) const noexcept override;
+  void derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept override;
+  Eigen::Vector3d normal(double u, double v) const noexcept override;
+  /// For p on the axis: the point at u = 0.
+  Eigen::Vector2d closest_point(const Eigen::Vector3d& p,
+                                Eigen::Vector3d& point) const noexcept override;
+  const Eigen::Vector3d& point() const noexcept { return a_; }
+  const Eigen::Vector3d& direction() const noexcept { return d_; }
+  double radius() const noexcept { return r_; }
+  const Eigen::Vector3d& e1() const noexcept { return e1_; }
+  const Eigen::Vector3d& e2() const noexcept { return e2_; }
+
+ private:
+  Eigen::Vector3d a_, d_, e1_, e2_;
+  double r_;
+};
+
+/// Infinite plane S(u, v) = o + u e1 + v e2: n the unit normal, e1 = n.unitOrthogonal()
+/// (Eigen's), e2 = n x e1; u, v in metres (unbounded).
+class Plane final : public Surface {
+ public:
+  /// normal: non-zero (normalised). Throws std::invalid_argument naming the parameter.
+  Plane(const Eigen::Vector3d& point, const Eigen::Vector3d& normal);
+  Eigen::Vector2d lower() const noexcept override;
+  Eigen::Vector2d upper() const noexcept override;
+  Eigen::Vector3d evaluate(double u, double v) const noexcept override;
+  void derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept override;
+  Eigen::Vector3d normal(double u, double v) const noexcept override;
+  Eigen::Vector2d closest_point(const Eigen::Vector3d& p,
+                                Eigen::Vector3d& point) const noexcept override;
+  const Eigen::Vector3d& point() const noexcept { return o_; }
+  const Eigen::Vector3d& normal() const noexcept { return n_; }
+  const Eigen::Vector3d& e1() const noexcept { return e1_; }
+  const Eigen::Vector3d& e2() const noexcept { return e2_; }
+
+ private:
+  Eigen::Vector3d o_, n_, e1_, e2_;
+};
+
+}  // namespace virtmech

@@ -1,0 +1,284 @@
+// Python bindings of the geometry objects (include/virtmech/geometry.hpp): translation
+// only. Shapes are checked here so that errors name the parameter; every other rule (knots,
+// weights, degrees) lives in the C++ core, whose std::invalid_argument becomes ValueError.
+#include <nanobind/eigen/dense.h>
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+
+#include <string>
+#include <vector>
+
+#include "virtmech/geometry.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+using namespace virtmech;
+
+namespace {
+
+using Rows3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+std::string shape_str(const std::vector<long>& s) {
+  std::string out = "(";
+  for (size_t i = 0; i < s.size(); ++i) out += (i ? ", " : "") + std::to_string(s[i]);
+  return out + (s.size() == 1 ? ",)" : ")");
+}
+
+// `obj` as a float64 C-contiguous array with ndim dimensions; its shape in `shape`, data
+// copied into `data`. ValueError / TypeError naming `name` and the expected shape.
+std::vector<double> as_doubles(const char* name, nb::handle obj, size_t ndim,
+                               const char* expected, std::vector<long>& shape) {
+  static nb::object* asarray =  // leaked on purpose: must outlive finalisation
+      new nb::object(nb::module_::import_("numpy").attr("ascontiguousarray"));
+  if (obj.is_none()) {
+    throw nb::type_error((std::string(name) + ": expected " + expected + ", got None").c_str());
+  }
+  nb::object a;
+  try {
+    a = (*asarray)(obj, "dtype"_a = "float64");
+  } catch (nb::python_error&) {
+    throw nb::type_error((std::string(name) + ": expected " + expected + ", got " +
+                          nb::cast<std::string>(nb::repr(obj)).substr(0, 80)).c_str());
+  }
+  auto arr = nb::cast<nb::ndarray<const double, nb::c_contig, nb::device::cpu>>(a);
+  shape.clear();
+  for (size_t i = 0; i < arr.ndim(); ++i) shape.push_back(static_cast<long>(arr.shape(i)));
+  if (arr.ndim() != ndim) {
+    throw nb::value_error((std::string(name) + ": expected " + expected + ", got shape " +
+                           shape_str(shape)).c_str());
+  }
+  return std::vector<double>(arr.data(), arr.data() + arr.size());
+}
+
+Eigen::Vector3d to_point(const char* name, nb::handle obj) {
+  std::vector<long> s;
+  auto d = as_doubles(name, obj, 1, "an array of shape (3,)", s);
+  if (s[0] != 3) {
+    throw nb::value_error((std::string(name) + ": expected an array of shape (3,), got shape " +
+                           shape_str(s)).c_str());
+  }
+  return {d[0], d[1], d[2]};
+}
+
+Eigen::VectorXd to_vec(const char* name, nb::handle obj) {
+  std::vector<long> s;
+  auto d = as_doubles(name, obj, 1, "a 1-D array", s);
+  return Eigen::Map<const Eigen::VectorXd>(d.data(), static_cast<Eigen::Index>(d.size()));
+}
+
+double to_number(const char* name, nb::handle obj) {
+  try {
+    return nb::cast<double>(obj);
+  } catch (...) {
+    throw nb::type_error((std::string(name) + ": expected a number, got " +
+                          nb::cast<std::string>(nb::repr(obj)).substr(0, 80)).c_str());
+  }
+}
+
+int to_degree(const char* name, nb::handle obj) {
+  if (!PyLong_Check(obj.ptr()) && !PyIndex_Check(obj.ptr())) {
+    throw nb::type_error((std::string(name) + ": expected an integer, got " +
+                          nb::cast<std::string>(nb::repr(obj)).substr(0, 80)).c_str());
+  }
+  const long v = nb::cast<long>(obj.attr("__index__")());
+  if (v < 1 || v > kMaxNurbsDegree) {
+    throw nb::value_error((std::string(name) + ": expected 1 to " +
+                           std::to_string(kMaxNurbsDegree) + ", got " + std::to_string(v)).c_str());
+  }
+  return static_cast<int>(v);
+}
+
+int check_order(int order, int max_order) {
+  if (order < 0 || order > max_order) {
+    throw nb::value_error(("order: expected 0 to " + std::to_string(max_order) + ", got " +
+                           std::to_string(order)).c_str());
+  }
+  return order;
+}
+
+nb::object surface_derivatives(const Surface& s, double u, double v, int order) {
+  check_order(order, kMaxDerivativeOrder);
+  SurfaceDerivatives d;
+  s.derivatives(u, v, order, d);
+  const int n = order + 1;
+  Rows3 out(n * n, 3);
+  for (int k = 0; k < n; ++k)
+    for (int l = 0; l < n; ++l) out.row(k * n + l) = d(k, l).transpose();
+  return nb::cast(out).attr("reshape")(n, n, 3);
+}
+
+nb::tuple surface_closest(const Surface& s, nb::handle p) {
+  Eigen::Vector3d point;
+  const Eigen::Vector2d uv = s.closest_point(to_point("p", p), point);
+  return nb::make_tuple(uv, point);
+}
+
+nb::dict curvature_dict(const Surface& s, double u, double v) {
+  const SurfaceCurvature c = s.curvature(u, v);
+  nb::dict d;
+  d["mean"] = c.mean;
+  d["gaussian"] = c.gaussian;
+  return d;
+}
+
+}  // namespace
+
+void bind_geometry(nb::module_& m) {
+  m.attr("MAX_NURBS_DEGREE") = kMaxNurbsDegree;
+
+  nb::class_<Curve>(m, "Curve", "A parametric curve C(u) (base class).")
+      .def_prop_ro("lower", &Curve::lower, "Lower parameter bound.")
+      .def_prop_ro("upper", &Curve::upper, "Upper parameter bound.")
+      .def("evaluate", &Curve::evaluate, "u"_a,
+           "The point C(u) (3,); u is clamped to [lower, upper].")
+      .def(
+          "derivatives",
+          [](const Curve& c, double u, int order) {
+            check_order(order, kMaxDerivativeOrder);
+            CurveDerivatives d;
+            c.derivatives(u, order, d);
+            return Rows3(d.leftCols(order + 1).transpose());
+          },
+          "u"_a, "order"_a = 2,
+          "(order + 1, 3): row k the k-th derivative d^k C / du^k (row 0 the point).")
+      .def("tangent", &Curve::tangent, "u"_a, "Unit tangent (3,).")
+      .def("curvature", &Curve::curvature, "u"_a, "Curvature [1/m].")
+      .def(
+          "closest_point",
+          [](const Curve& c, nb::handle p) {
+            Eigen::Vector3d point;
+            const double u = c.closest_point(to_point("p", p), point);
+            return nb::make_tuple(u, point);
+          },
+          "p"_a, "(u, point): the parameter and the point (3,) of the curve closest to p.");
+
+  nb::class_<Surface>(m, "Surface", "A parametric surface S(u, v) (base class).")
+      .def_prop_ro("lower", &Surface::lower, "Lower parameter bounds (u, v) (may be -inf).")
+      .def_prop_ro("upper", &Surface::upper, "Upper parameter bounds (u, v) (may be inf).")
+      .def("evaluate", &Surface::evaluate, "u"_a, "v"_a, "The point S(u, v) (3,).")
+      .def("derivatives", &surface_derivatives, "u"_a, "v"_a, "order"_a = 2,
+           "(order + 1, order + 1, 3): entry [k, l] = d^(k+l) S / du^k dv^l for every "
+           "k, l <= order (geomdl's convention).")
+      .def("normal", &Surface::normal, "u"_a, "v"_a, "Unit normal (3,).")
+      .def("curvature", &curvature_dict, "u"_a, "v"_a,
+           "{'mean', 'gaussian'}: curvatures with respect to normal() [1/m, 1/m^2].")
+      .def("closest_point", &surface_closest, "p"_a,
+           "(parameters (2,), point (3,)): the point of the surface closest to p.");
+
+  nb::class_<NurbsCurve, Curve>(m, "NurbsCurve",
+                                "A NURBS curve (Piegl & Tiller, The NURBS Book).")
+      .def(
+          "__init__",
+          [](NurbsCurve* self, nb::handle control_points, nb::handle weights, nb::handle knots,
+             nb::handle degree) {
+            std::vector<long> s;
+            auto P = as_doubles("control_points", control_points, 2, "an array of shape (n, 3)", s);
+            if (s[1] != 3) {
+              throw nb::value_error(("control_points: expected an array of shape (n, 3), got "
+                                     "shape " + shape_str(s)).c_str());
+            }
+            const Eigen::MatrixX3d Pm = Eigen::Map<const Rows3>(P.data(), s[0], 3);
+            const Eigen::VectorXd w = to_vec("weights", weights);
+            const Eigen::VectorXd U = to_vec("knots", knots);
+            const int p = to_degree("degree", degree);
+            nb::gil_scoped_release release;
+            new (self) NurbsCurve(Pm, w, U, p);
+          },
+          "control_points"_a, "weights"_a, "knots"_a, "degree"_a,
+          "control_points (n, 3) [m]; weights (n,) > 0; knots: n + degree + 1 non-decreasing "
+          "values; 1 <= degree <= MAX_NURBS_DEGREE.")
+      .def_prop_ro("degree", &NurbsCurve::degree)
+      .def_prop_ro("control_points", [](const NurbsCurve& c) { return Rows3(c.control_points()); })
+      .def_prop_ro("weights", &NurbsCurve::weights)
+      .def_prop_ro("knots", &NurbsCurve::knots);
+
+  nb::class_<NurbsSurface, Surface>(m, "NurbsSurface",
+                                    "A tensor-product NURBS surface (Piegl & Tiller).")
+      .def(
+          "__init__",
+          [](NurbsSurface* self, nb::handle control_points, nb::handle weights,
+             nb::handle knots_u, nb::handle knots_v, nb::handle degree_u, nb::handle degree_v) {
+            std::vector<long> s, sw;
+            auto P = as_doubles("control_points", control_points, 3,
+                                "an array of shape (nu, nv, 3)", s);
+            if (s[2] != 3) {
+              throw nb::value_error(("control_points: expected an array of shape (nu, nv, 3), "
+                                     "got shape " + shape_str(s)).c_str());
+            }
+            auto W = as_doubles("weights", weights, 2, "an array of shape (nu, nv)", sw);
+            if (sw[0] != s[0] || sw[1] != s[1]) {
+              throw nb::value_error(("weights: expected an array of shape " +
+                                     shape_str({s[0], s[1]}) + " (the control points'), got "
+                                     "shape " + shape_str(sw)).c_str());
+            }
+            const Eigen::MatrixX3d Pm = Eigen::Map<const Rows3>(P.data(), s[0] * s[1], 3);
+            using RowsX = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+            const Eigen::MatrixXd Wm = Eigen::Map<const RowsX>(W.data(), sw[0], sw[1]);
+            const Eigen::VectorXd Uu = to_vec("knots_u", knots_u);
+            const Eigen::VectorXd Uv = to_vec("knots_v", knots_v);
+            const int p = to_degree("degree_u", degree_u);
+            const int q = to_degree("degree_v", degree_v);
+            nb::gil_scoped_release release;
+            new (self) NurbsSurface(Pm, Wm, Uu, Uv, p, q);
+          },
+          "control_points"_a, "weights"_a, "knots_u"_a, "knots_v"_a, "degree_u"_a,
+          "degree_v"_a,
+          "control_points (nu, nv, 3) [m]; weights (nu, nv) > 0; knots_u: nu + degree_u + 1 "
+          "values, knots_v: nv + degree_v + 1 (non-decreasing).")
+      .def_prop_ro("degree_u", &NurbsSurface::degree_u)
+      .def_prop_ro("degree_v", &NurbsSurface::degree_v)
+      .def_prop_ro("control_points",
+                   [](const NurbsSurface& s) {
+                     return nb::cast(Rows3(s.control_points()))
+                         .attr("reshape")(s.size_u(), s.size_v(), 3);
+                   })
+      .def_prop_ro("weights", &NurbsSurface::weights)
+      .def_prop_ro("knots_u", &NurbsSurface::knots_u)
+      .def_prop_ro("knots_v", &NurbsSurface::knots_v);
+
+  nb::class_<Sphere, Surface>(
+      m, "Sphere",
+      "Sphere S(u, v) = c + r (cos u cos v, sin u cos v, sin v): u the longitude in "
+      "[-pi, pi], v the latitude in [-pi/2, pi/2]; outward normal.")
+      .def(
+          "__init__",
+          [](Sphere* self, nb::handle center, nb::handle radius) {
+            new (self) Sphere(to_point("center", center), to_number("radius", radius));
+          },
+          "center"_a, "radius"_a)
+      .def_prop_ro("center", &Sphere::center)
+      .def_prop_ro("radius", &Sphere::radius);
+
+  nb::class_<Cylinder, Surface>(
+      m, "Cylinder",
+      "Infinite cylinder S(u, v) = a + r (cos u e1 + sin u e2) + v d: d the unit axis, "
+      "e1 = an orthogonal unit vector (e1 property), e2 = d x e1; normal away from the axis.")
+      .def(
+          "__init__",
+          [](Cylinder* self, nb::handle point, nb::handle direction, nb::handle radius) {
+            new (self) Cylinder(to_point("point", point), to_point("direction", direction),
+                                to_number("radius", radius));
+          },
+          "point"_a, "direction"_a, "radius"_a)
+      .def_prop_ro("point", &Cylinder::point)
+      .def_prop_ro("direction", &Cylinder::direction)
+      .def_prop_ro("radius", &Cylinder::radius)
+      .def_prop_ro("e1", &Cylinder::e1)
+      .def_prop_ro("e2", &Cylinder::e2);
+
+  nb::class_<Plane, Surface>(
+      m, "Plane",
+      "Infinite plane S(u, v) = o + u e1 + v e2: n the unit normal, e1 an orthogonal unit "
+      "vector (e1 property), e2 = n x e1.")
+      .def(
+          "__init__",
+          [](Plane* self, nb::handle point, nb::handle normal) {
+            new (self) Plane(to_point("point", point), to_point("normal", normal));
+          },
+          "point"_a, "normal"_a)
+      .def_prop_ro("point", &Plane::point)
+      .def_prop_ro("normal_vector", [](const Plane& p) { return p.normal(); },
+                   "The unit normal (3,).")
+      .def_prop_ro("e1", &Plane::e1)
+      .def_prop_ro("e2", &Plane::e2);
+}

@@ -1,0 +1,855 @@
+// Curves and surfaces (include/virtmech/geometry.hpp). NURBS: Piegl & Tiller, The NURBS
+// Book, 2nd ed., 1997, algorithms A2.1, A2.3, A3.2, A3.6, A4.2, A4.4.
+#include "virtmech/geometry.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "virtmech/validate.hpp"
+
+namespace virtmech {
+
+namespace {
+
+constexpr int kP = kMaxNurbsDegree + 1;  // work-array size
+constexpr int kD = kMaxDerivativeOrder + 1;
+constexpr double kPi = 3.14159265358979323846;
+
+// binomial coefficients up to kMaxDerivativeOrder
+struct Binomial {
+  double c[kD][kD] = {};
+  constexpr Binomial() {
+    for (int n = 0; n < kD; ++n) {
+      c[n][0] = 1.0;
+      for (int k = 1; k <= n; ++k) c[n][k] = c[n - 1][k - 1] + (k < n ? c[n - 1][k] : 0.0);
+    }
+  }
+};
+constexpr Binomial kBin{};
+
+// ---- knot vectors --------------------------------------------------------------------
+
+// Checks a knot vector for n control points of degree p; returns the domain [U_p, U_n].
+void check_knots(const char* name, const Eigen::VectorXd& U, int n, int p) {
+  const Eigen::Index expected = n + p + 1;
+  if (U.size() != expected) {
+    std::ostringstream os;
+    os << name << ": expected n + degree + 1 = " << expected << " values (n = " << n
+       << " control points, degree " << p << "), got " << U.size();
+    throw std::invalid_argument(os.str());
+  }
+  require_finite(name, U);
+  int multiplicity = 1;
+  for (Eigen::Index i = 1; i < U.size(); ++i) {
+    if (U[i] < U[i - 1]) {
+      std::ostringstream os;
+      os << name << ": expected non-decreasing values, got " << U[i] << " after " << U[i - 1]
+         << " at index " << i << " of " << format_vector(U);
+      throw std::invalid_argument(os.str());
+    }
+    multiplicity = U[i] == U[i - 1] ? multiplicity + 1 : 1;
+    if (multiplicity > p + 1) {
+      std::ostringstream os;
+      os << name << ": expected every knot's multiplicity at most degree + 1 = " << p + 1
+         << ", got " << U[i] << " " << multiplicity << " times in " << format_vector(U);
+      throw std::invalid_argument(os.str());
+    }
+  }
+  if (!(U[p] < U[n])) {
+    std::ostringstream os;
+    os << name << ": expected a non-empty domain [knots[degree], knots[n]] = [" << U[p] << ", "
+       << U[n] << "], got " << format_vector(U);
+    throw std::invalid_argument(os.str());
+  }
+}
+
+void check_degree(const char* name, int p) {
+  if (p < 1 || p > kMaxNurbsDegree) {
+    throw std::invalid_argument(std::string(name) + ": expected 1 to " +
+                                std::to_string(kMaxNurbsDegree) + ", got " + std::to_string(p));
+  }
+}
+
+// A2.1: the span index i with U_i <= u < U_(i+1), p <= i <= n - 1 (n control points);
+// u within [U_p, U_n].
+int find_span(const double* U, int n, int p, double u) noexcept {
+  if (u >= U[n]) {
+    int i = n - 1;
+    while (i > p && U[i] == U[i + 1]) --i;
+    return i;
+  }
+  if (u <= U[p]) {
+    int i = p;
+    while (i < n - 1 && U[i] == U[i + 1]) ++i;
+    return i;
+  }
+  int lo = p, hi = n;
+  int mid = (lo + hi) / 2;
+  while (u < U[mid] || u >= U[mid + 1]) {
+    if (u < U[mid]) {
+      hi = mid;
+    } else {
+      lo = mid;
+    }
+    mid = (lo + hi) / 2;
+  }
+  return mid;
+}
+
+// A2.3: ders[k][j] = k-th derivative of N_(i-p+j),p at u, k <= nd (nd <= p: higher are 0).
+void basis_derivatives(const double* U, int i, int p, double u, int nd,
+                       double (&ders)[kD][kP]) noexcept {
+  double ndu[kP][kP];
+  double left[kP], right[kP];
+  double a[2][kP];
+  ndu[0][0] = 1.0;
+  for (int j = 1; j <= p; ++j) {
+    left[j] = u - U[i + 1 - j];
+    right[j] = U[i + j] - u;
+    double saved = 0.0;
+    for (int r = 0; r < j; ++r) {
+      ndu[j][r] = right[r + 1] + left[j - r];
+      const double temp = ndu[r][j - 1] / ndu[j][r];
+      ndu[r][j] = saved + right[r + 1] * temp;
+      saved = left[j - r] * temp;
+    }
+    ndu[j][j] = saved;
+  }
+  for (int j = 0; j <= p; ++j) ders[0][j] = ndu[j][p];
+  const int n = std::min(nd, p);
+  for (int r = 0; r <= p; ++r) {
+    int s1 = 0, s2 = 1;
+    a[0][0] = 1.0;
+    for (int k = 1; k <= n; ++k) {
+      double d = 0.0;
+      const int rk = r - k, pk = p - k;
+      if (r >= k) {
+        a[s2][0] = a[s1][0] / ndu[pk + 1][rk];
+        d = a[s2][0] * ndu[rk][pk];
+      }
+      const int j1 = rk >= -1 ? 1 : -rk;
+      const int j2 = (r - 1 <= pk) ? k - 1 : p - r;
+      for (int j = j1; j <= j2; ++j) {
+        a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][rk + j];
+        d += a[s2][j] * ndu[rk + j][pk];
+      }
+      if (r <= pk) {
+        a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
+        d += a[s2][k] * ndu[r][pk];
+      }
+      ders[k][r] = d;
+      std::swap(s1, s2);
+    }
+  }
+  double f = p;
+  for (int k = 1; k <= n; ++k) {
+    for (int j = 0; j <= p; ++j) ders[k][j] *= f;
+    f *= (p - k);
+  }
+  for (int k = n + 1; k <= nd; ++k)
+    for (int j = 0; j <= p; ++j) ders[k][j] = 0.0;
+}
+
+double clamp(double x, double lo, double hi) noexcept { return std::min(std::max(x, lo), hi); }
+
+int clamp_order(int order) noexcept { return std::min(std::max(order, 0), kMaxDerivativeOrder); }
+
+// the samples' parameters: `per_span` intervals in every non-empty knot span
+std::vector<double> sample_parameters(const Eigen::VectorXd& U, int n, int p, int per_span) {
+  std::vector<double> s;
+  for (int i = p; i < n; ++i) {
+    if (U[i] == U[i + 1]) continue;
+    for (int k = 0; k < per_span; ++k) s.push_back(U[i] + (U[i + 1] - U[i]) * k / per_span);
+  }
+  s.push_back(U[n]);
+  return s;
+}
+
+int samples_per_span(int p) { return std::max(8, 2 * p); }
+
+// ---- closest point: projected Newton with Levenberg-Marquardt safeguard ----------------
+
+// Minimises f(x) = |S(x) - p|^2 / 2 over the box [lo, hi] from x (refined in place);
+// returns f. `eval(x, S, g, H)`: the point, the gradient and the Hessian of f at x.
+template <int N, typename Eval>
+double refine(Eigen::Matrix<double, N, 1>& x, const Eigen::Matrix<double, N, 1>& lo,
+              const Eigen::Matrix<double, N, 1>& hi, const Eval& eval) noexcept {
+  static_assert(N == 1 || N == 2, "refine: one or two parameters");
+  using Vec = Eigen::Matrix<double, N, 1>;
+  using Mat = Eigen::Matrix<double, N, N>;
+  Vec g;
+  Mat H;
+  double f = eval(x, g, H);
+  Vec scale;
+  for (int i = 0; i < N; ++i) {
+    const double w = hi[i] - lo[i];
+    scale[i] = std::isfinite(w) ? w : 1.0;
+  }
+  for (int it = 0; it < 100; ++it) {
+    // active set: at a bound with the gradient pointing out of the box
+    bool free[N];
+    int nfree = 0;
+    for (int i = 0; i < N; ++i) {
+      free[i] = !((x[i] <= lo[i] && g[i] > 0.0) || (x[i] >= hi[i] && g[i] < 0.0));
+      nfree += free[i];
+    }
+    if (nfree == 0) break;
+    Mat Hf = Mat::Identity();
+    Vec gf = Vec::Zero();
+    for (int i = 0; i < N; ++i) {
+      if (!free[i]) continue;
+      gf[i] = g[i];
+      for (int j = 0; j < N; ++j)
+        if (free[j]) Hf(i, j) = H(i, j);
+    }
+    if (gf.isZero(0.0)) break;
+    // regularise where not positive definite (N <= 2: eigenvalues in closed form)
+    double lmin, lmax;
+    if (N == 1) {
+      lmin = lmax = Hf(0, 0);
+    } else {
+      const double m = 0.5 * (Hf(0, 0) + Hf(N - 1, N - 1));
+      const double q = std::hypot(0.5 * (Hf(0, 0) - Hf(N - 1, N - 1)), Hf(0, N - 1));
+      lmin = m - q;
+      lmax = m + q;
+    }
+    lmax = std::max(std::max(std::abs(lmin), std::abs(lmax)), 1e-300);
+    double mu = 0.0;
+    if (!(lmin > 1e-10 * lmax)) mu = -lmin + 1e-3 * lmax;
+    const Mat A = Hf + mu * Mat::Identity();
+    Vec d;
+    if (N == 1) {
+      d[0] = -gf[0] / A(0, 0);
+    } else {
+      const double det = A(0, 0) * A(N - 1, N - 1) - A(0, N - 1) * A(N - 1, 0);
+      d[0] = -(A(N - 1, N - 1) * gf[0] - A(0, N - 1) * gf[N - 1]) / det;
+      d[N - 1] = -(A(0, 0) * gf[N - 1] - A(N - 1, 0) * gf[0]) / det;
+    }
+    for (int i = 0; i < N; ++i)
+      if (!free[i]) d[i] = 0.0;
+    if (!d.allFinite()) break;
+    const bool small = (d.cwiseAbs().array() <= 1e-7 * scale.array()).all() && mu == 0.0;
+    Vec xn;
+    Vec gn;
+    Mat Hn;
+    double fn = 0.0;
+    // backtracking (Armijo) along the projected direction dir
+    auto search = [&](const Vec& dir, bool full_ok) {
+      double t = 1.0;
+      for (int ls = 0; ls < 60; ++ls) {
+        xn = (x + t * dir).cwiseMax(lo).cwiseMin(hi);
+        if (xn == x) return false;  // the step vanished: no progress along dir
+        fn = eval(xn, gn, Hn);
+        if (fn <= f + 1e-4 * g.dot(xn - x) || (full_ok && t == 1.0)) return true;
+        t *= 0.5;
+      }
+      return false;
+    };
+    bool accepted = search(d, small);
+    // across a crease (a knot of full multiplicity) the one-sided Hessian misleads the
+    // coupled step: one coordinate at a time
+    for (int i = 0; i < N && !accepted && N > 1; ++i) {
+      if (!free[i] || g[i] == 0.0) continue;
+      Vec di = Vec::Zero();
+      di[i] = -g[i] / std::max(H(i, i), 1e-3 * lmax);
+      accepted = search(di, false);
+    }
+    if (!accepted) break;
+    const Vec step = xn - x;
+    x = xn;
+    f = fn;
+    g = gn;
+    H = Hn;
+    if ((step.cwiseAbs().array() <= 1e-15 * scale.array()).all()) break;
+  }
+  return f;
+}
+
+// a small fixed-capacity list of the best candidates (smallest distance first)
+template <int K>
+struct Best {
+  int index[K];
+  double d2[K];
+  int count = 0;
+  void add(int i, double d) noexcept {
+    for (int j = 0; j < count; ++j)
+      if (index[j] == i) return;  // the same start twice
+    int pos = count < K ? count : K;
+    while (pos > 0 && d2[pos - 1] > d) --pos;
+    if (pos >= K) return;
+    for (int j = std::min(count, K - 1); j > pos; --j) {
+      index[j] = index[j - 1];
+      d2[j] = d2[j - 1];
+    }
+    index[pos] = i;
+    d2[pos] = d;
+    count = std::min(count + 1, K);
+  }
+};
+
+constexpr int kCandidates = 12;
+
+Eigen::Vector3d safe_normalized(const Eigen::Vector3d& v, const char* name) {
+  const double n = v.norm();
+  if (!(std::isfinite(n) && n > 0.0)) {
+    throw std::invalid_argument(std::string(name) + ": expected a finite, non-zero vector, got " +
+                                format_vector(v));
+  }
+  return v / n;
+}
+
+}  // namespace
+
+// ---- Curve, Surface ----------------------------------------------------------------------
+
+Eigen::Vector3d Curve::tangent(double u) const noexcept {
+  CurveDerivatives d;
+  derivatives(u, 1, d);
+  const double n = d.col(1).norm();
+  return n > 0.0 ? Eigen::Vector3d(d.col(1) / n) : Eigen::Vector3d::Zero();
+}
+
+double Curve::curvature(double u) const noexcept {
+  CurveDerivatives d;
+  derivatives(u, 2, d);
+  const double n = d.col(1).norm();
+  if (!(n > 0.0)) return 0.0;
+  return d.col(1).cross(d.col(2)).norm() / (n * n * n);
+}
+
+Eigen::Vector3d Surface::normal(double u, double v) const noexcept {
+  SurfaceDerivatives d;
+  const Eigen::Vector2d lo = lower(), hi = upper();
+  u = clamp(u, lo[0], hi[0]);
+  v = clamp(v, lo[1], hi[1]);
+  derivatives(u, v, 1, d);
+  Eigen::Vector3d n = d(1, 0).cross(d(0, 1));
+  const double scale = d(1, 0).norm() * d(0, 1).norm();
+  if (!(n.norm() > 1e-12 * scale) && std::isfinite(hi[0] - lo[0]) &&
+      std::isfinite(hi[1] - lo[1])) {
+    // degenerate (a collapsed edge): a little toward the patch's centre
+    const Eigen::Vector2d c = 0.5 * (lo + hi);
+    const double h = 1e-7;
+    derivatives(u + h * (c[0] - u), v + h * (c[1] - v), 1, d);
+    n = d(1, 0).cross(d(0, 1));
+  }
+  const double len = n.norm();
+  return len > 0.0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::UnitZ();
+}
+
+SurfaceCurvature Surface::curvature(double u, double v) const noexcept {
+  SurfaceDerivatives d;
+  derivatives(u, v, 2, d);
+  const Eigen::Vector3d n = normal(u, v);
+  const double E = d(1, 0).dot(d(1, 0)), F = d(1, 0).dot(d(0, 1)), G = d(0, 1).dot(d(0, 1));
+  const double L = d(2, 0).dot(n), M = d(1, 1).dot(n), N = d(0, 2).dot(n);
+  const double det = E * G - F * F;
+  SurfaceCurvature c;
+  if (det > 0.0) {
+    c.mean = (E * N - 2.0 * F * M + G * L) / (2.0 * det);
+    c.gaussian = (L * N - M * M) / det;
+  }
+  return c;
+}
+
+// ---- NurbsCurve ----------------------------------------------------------------------------
+
+NurbsCurve::NurbsCurve(const Eigen::MatrixX3d& control_points, const Eigen::VectorXd& weights,
+                       const Eigen::VectorXd& knots, int degree)
+    : n_(static_cast<int>(control_points.rows())), p_(degree), knots_(knots) {
+  check_degree("degree", degree);
+  if (n_ < degree + 1) {
+    throw std::invalid_argument("control_points: expected at least degree + 1 = " +
+                                std::to_string(degree + 1) + " points, got " +
+                                std::to_string(n_));
+  }
+  for (int i = 0; i < n_; ++i) require_finite("control_points", Eigen::VectorXd(control_points.row(i).transpose()));
+  if (weights.size() != n_) {
+    throw std::invalid_argument("weights: expected " + std::to_string(n_) +
+                                " values (one per control point), got " +
+                                std::to_string(weights.size()));
+  }
+  if (!weights.allFinite() || !(weights.array() > 0.0).all()) {
+    throw std::invalid_argument("weights: expected finite values > 0, got " +
+                                format_vector(weights));
+  }
+  check_knots("knots", knots, n_, p_);
+  lower_ = knots[p_];
+  upper_ = knots[n_];
+  pw_.resize(4, n_);
+  for (int i = 0; i < n_; ++i) {
+    pw_.col(i).head<3>() = weights[i] * control_points.row(i).transpose();
+    pw_(3, i) = weights[i];
+  }
+  sample_u_ = sample_parameters(knots_, n_, p_, samples_per_span(p_));
+  const size_t ns = sample_u_.size();
+  sample_p_.reserve(ns);
+  for (double u : sample_u_) sample_p_.push_back(evaluate(u));
+  sample_d_start_.resize(ns - 1);
+  sample_d_end_.resize(ns - 1);
+  CurveDerivatives d;
+  for (size_t i = 0; i + 1 < ns; ++i) {
+    const int span =
+        find_span(knots_.data(), n_, p_, 0.5 * (sample_u_[i] + sample_u_[i + 1]));
+    derivatives_in_span(sample_u_[i], span, 1, d);
+    sample_d_start_[i] = d.col(1);
+    derivatives_in_span(sample_u_[i + 1], span, 1, d);
+    sample_d_end_[i] = d.col(1);
+  }
+}
+
+Eigen::MatrixX3d NurbsCurve::control_points() const {
+  Eigen::MatrixX3d P(n_, 3);
+  for (int i = 0; i < n_; ++i) P.row(i) = (pw_.col(i).head<3>() / pw_(3, i)).transpose();
+  return P;
+}
+
+Eigen::VectorXd NurbsCurve::weights() const { return pw_.row(3).transpose(); }
+
+Eigen::Vector3d NurbsCurve::evaluate(double u) const noexcept {
+  CurveDerivatives d;
+  derivatives(u, 0, d);
+  return d.col(0);
+}
+
+void NurbsCurve::derivatives(double u, int order, CurveDerivatives& out) const noexcept {
+  u = clamp(u, lower_, upper_);
+  derivatives_in_span(u, find_span(knots_.data(), n_, p_, u), order, out);
+}
+
+void NurbsCurve::derivatives_in_span(double u, int span, int order,
+                                     CurveDerivatives& out) const noexcept {
+  const int nd = clamp_order(order);
+  const double* U = knots_.data();
+  double ders[kD][kP];
+  basis_derivatives(U, span, p_, u, nd, ders);
+  // A3.2 on the homogeneous points
+  Eigen::Vector4d Cw[kD];
+  for (int k = 0; k <= nd; ++k) {
+    Cw[k].setZero();
+    if (k > p_) continue;
+    for (int j = 0; j <= p_; ++j) Cw[k] += ders[k][j] * pw_.col(span - p_ + j);
+  }
+  // A4.2
+  for (int k = 0; k <= nd; ++k) {
+    Eigen::Vector3d v = Cw[k].head<3>();
+    for (int i = 1; i <= k; ++i) v -= kBin.c[k][i] * Cw[i][3] * out.col(k - i);
+    out.col(k) = v / Cw[0][3];
+  }
+}
+
+double NurbsCurve::closest_point(const Eigen::Vector3d& p, Eigen::Vector3d& point) const noexcept {
+  // Brackets: a sample interval whose f' = C'.(C - p) is < 0 at its start and > 0 at its
+  // end (one-sided derivatives, so kinks at knots count) holds a local minimum; so does a
+  // sample where f' changes sign across it (a kink), and an end where f' points outward.
+  const int ni = static_cast<int>(sample_u_.size()) - 1;  // intervals
+  auto d2 = [&](int i) { return (sample_p_[static_cast<size_t>(i)] - p).squaredNorm(); };
+  auto g_start = [&](int i) {
+    return sample_d_start_[static_cast<size_t>(i)].dot(sample_p_[static_cast<size_t>(i)] - p);
+  };
+  auto g_end = [&](int i) {
+    return sample_d_end_[static_cast<size_t>(i)].dot(sample_p_[static_cast<size_t>(i) + 1] - p);
+  };
+  // candidate index 4 i + kind: kind 0 the sample i itself (a kink or an end), 1 interval i
+  // (a bracket), 2 / 3 interval i from its start / end (a sample that is a discrete local
+  // minimum of the distance, refined on its downhill side: a dip between samples whose
+  // derivatives agree in sign)
+  Best<kCandidates> best;
+  for (int i = 0; i <= ni; ++i) {
+    const bool left_ok = i == 0 || g_end(i - 1) <= 0.0;
+    const bool right_ok = i == ni || g_start(i) >= 0.0;
+    const double di = d2(i);
+    if (left_ok && right_ok) best.add(4 * i, di);
+    if (i < ni && g_start(i) < 0.0 && g_end(i) > 0.0)
+      best.add(4 * i + 1, std::min(di, d2(i + 1)));
+    if ((i == 0 || d2(i - 1) >= di) && (i == ni || d2(i + 1) >= di)) {
+      if (i < ni) best.add(4 * i + 2, di);
+      if (i > 0) best.add(4 * (i - 1) + 3, di);
+    }
+  }
+  using V1 = Eigen::Matrix<double, 1, 1>;
+  int span = p_;  // the bracket's knot span: one-sided derivatives at its ends
+  auto eval = [&](const V1& x, V1& g, Eigen::Matrix<double, 1, 1>& H) {
+    CurveDerivatives d;
+    derivatives_in_span(x[0], span, 2, d);
+    const Eigen::Vector3d r = d.col(0) - p;
+    g[0] = d.col(1).dot(r);
+    H(0, 0) = d.col(1).squaredNorm() + d.col(2).dot(r);
+    return 0.5 * r.squaredNorm();
+  };
+  double best_f = kInf, best_u = lower_;
+  for (int c = 0; c < best.count; ++c) {
+    const int k = best.index[c];
+    const int i = k / 4, kind = k % 4;
+    double u = sample_u_[static_cast<size_t>(i)];
+    double f = 0.5 * best.d2[c];
+    if (kind != 0) {
+      const V1 lo = V1::Constant(sample_u_[static_cast<size_t>(i)]);
+      const V1 hi = V1::Constant(sample_u_[static_cast<size_t>(i) + 1]);
+      span = find_span(knots_.data(), n_, p_, 0.5 * (lo[0] + hi[0]));
+      // a bracket from inside, nearer its closer end (at a knot the derivatives past the
+      // bracket's end may differ); else from the sample
+      // (a sample whose derivative points away from the interval: from its middle, for a
+      // dip the samples straddle)
+      double t = kind == 1 ? (d2(i) <= d2(i + 1) ? 0.25 : 0.75) : (kind == 2 ? 0.0 : 1.0);
+      if ((kind == 2 && g_start(i) >= 0.0) || (kind == 3 && g_end(i) <= 0.0)) t = 0.5;
+      V1 x = V1::Constant(lo[0] + t * (hi[0] - lo[0]));
+      f = refine<1>(x, lo, hi, eval);
+      u = x[0];
+    }
+    if (f < best_f) {
+      best_f = f;
+      best_u = u;
+    }
+  }
+  point = evaluate(best_u);
+  return best_u;
+}
+
+// ---- NurbsSurface --------------------------------------------------------------------------
+
+NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::MatrixXd& weights,
+                           const Eigen::VectorXd& knots_u, const Eigen::VectorXd& knots_v,
+                           int degree_u, int degree_v)
+    : nu_(static_cast<int>(weights.rows())),
+      nv_(static_cast<int>(weights.cols())),
+      p_(degree_u),
+      q_(degree_v),
+      knots_u_(knots_u),
+      knots_v_(knots_v) {
+  check_degree("degree_u", degree_u);
+  check_degree("degree_v", degree_v);
+  if (control_points.rows() != static_cast<Eigen::Index>(nu_) * nv_) {
+    throw std::invalid_argument("control_points: expected nu * nv = " + std::to_string(nu_) +
+                                " * " + std::to_string(nv_) + " points (the weights' shape), got " +
+                                std::to_string(control_points.rows()));
+  }
+  if (nu_ < degree_u + 1 || nv_ < degree_v + 1) {
+    throw std::invalid_argument("control_points: expected at least (degree_u + 1, degree_v + 1) = (" +
+                                std::to_string(degree_u + 1) + ", " + std::to_string(degree_v + 1) +
+                                ") points, got (" + std::to_string(nu_) + ", " +
+                                std::to_string(nv_) + ")");
+  }
+  if (!control_points.allFinite()) {
+    throw std::invalid_argument("control_points: expected finite values");
+  }
+  if (!weights.allFinite() || !(weights.array() > 0.0).all()) {
+    throw std::invalid_argument("weights: expected finite values > 0, got min " +
+                                std::to_string(weights.minCoeff()));
+  }
+  check_knots("knots_u", knots_u, nu_, p_);
+  check_knots("knots_v", knots_v, nv_, q_);
+  lower_ = {knots_u[p_], knots_v[q_]};
+  upper_ = {knots_u[nu_], knots_v[nv_]};
+  pw_.resize(4, nu_ * nv_);
+  for (int i = 0; i < nu_; ++i) {
+    for (int j = 0; j < nv_; ++j) {
+      const int c = i * nv_ + j;
+      pw_.col(c).head<3>() = weights(i, j) * control_points.row(c).transpose();
+      pw_(3, c) = weights(i, j);
+    }
+  }
+  sample_u_ = sample_parameters(knots_u_, nu_, p_, samples_per_span(p_));
+  sample_v_ = sample_parameters(knots_v_, nv_, q_, samples_per_span(q_));
+  sample_p_.reserve(sample_u_.size() * sample_v_.size());
+  sample_su_.reserve(sample_p_.capacity());
+  sample_sv_.reserve(sample_p_.capacity());
+  SurfaceDerivatives d;
+  for (double u : sample_u_) {
+    for (double v : sample_v_) {
+      derivatives(u, v, 1, d);
+      sample_p_.push_back(d(0, 0));
+      sample_su_.push_back(d(1, 0));
+      sample_sv_.push_back(d(0, 1));
+    }
+  }
+}
+
+Eigen::MatrixX3d NurbsSurface::control_points() const {
+  Eigen::MatrixX3d P(nu_ * nv_, 3);
+  for (int c = 0; c < nu_ * nv_; ++c) P.row(c) = (pw_.col(c).head<3>() / pw_(3, c)).transpose();
+  return P;
+}
+
+Eigen::MatrixXd NurbsSurface::weights() const {
+  Eigen::MatrixXd W(nu_, nv_);
+  for (int i = 0; i < nu_; ++i)
+    for (int j = 0; j < nv_; ++j) W(i, j) = pw_(3, i * nv_ + j);
+  return W;
+}
+
+Eigen::Vector3d NurbsSurface::evaluate(double u, double v) const noexcept {
+  SurfaceDerivatives d;
+  derivatives(u, v, 0, d);
+  return d(0, 0);
+}
+
+void NurbsSurface::derivatives(double u, double v, int order,
+                               SurfaceDerivatives& out) const noexcept {
+  const int nd = clamp_order(order);
+  u = clamp(u, lower_[0], upper_[0]);
+  v = clamp(v, lower_[1], upper_[1]);
+  const int su = find_span(knots_u_.data(), nu_, p_, u);
+  const int sv = find_span(knots_v_.data(), nv_, q_, v);
+  double Nu[kD][kP], Nv[kD][kP];
+  basis_derivatives(knots_u_.data(), su, p_, u, nd, Nu);
+  basis_derivatives(knots_v_.data(), sv, q_, v, nd, Nv);
+  // A3.6 on the homogeneous points
+  Eigen::Vector4d Sw[kD][kD];
+  const int du = std::min(nd, p_), dv = std::min(nd, q_);
+  for (int k = 0; k <= nd; ++k)
+    for (int l = 0; l <= nd; ++l) Sw[k][l].setZero();
+  Eigen::Vector4d temp[kP];
+  for (int k = 0; k <= du; ++k) {
+    for (int s = 0; s <= q_; ++s) {
+      temp[s].setZero();
+      for (int r = 0; r <= p_; ++r) temp[s] += Nu[k][r] * pw_.col((su - p_ + r) * nv_ + sv - q_ + s);
+    }
+    for (int l = 0; l <= dv; ++l) {
+      for (int s = 0; s <= q_; ++s) Sw[k][l] += Nv[l][s] * temp[s];
+    }
+  }
+  // A4.4, every (k, l) with k, l <= order (as geomdl)
+  for (int k = 0; k <= nd; ++k) {
+    for (int l = 0; l <= nd; ++l) {
+      Eigen::Vector3d w = Sw[k][l].head<3>();
+      for (int j = 1; j <= l; ++j) w -= kBin.c[l][j] * Sw[0][j][3] * out(k, l - j);
+      for (int i = 1; i <= k; ++i) {
+        w -= kBin.c[k][i] * Sw[i][0][3] * out(k - i, l);
+        Eigen::Vector3d w2 = Eigen::Vector3d::Zero();
+        for (int j = 1; j <= l; ++j) w2 += kBin.c[l][j] * Sw[i][j][3] * out(k - i, l - j);
+        w -= kBin.c[k][i] * w2;
+      }
+      out(k, l) = w / Sw[0][0][3];
+    }
+  }
+}
+
+Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
+                                            Eigen::Vector3d& point) const noexcept {
+  const int mu = static_cast<int>(sample_u_.size()), mv = static_cast<int>(sample_v_.size());
+  auto d2 = [&](int i, int j) {
+    return (sample_p_[static_cast<size_t>(i) * mv + j] - p).squaredNorm();
+  };
+  auto gu = [&](int i, int j) {
+    const size_t k = static_cast<size_t>(i) * mv + j;
+    return sample_su_[k].dot(sample_p_[k] - p);
+  };
+  auto gv = [&](int i, int j) {
+    const size_t k = static_cast<size_t>(i) * mv + j;
+    return sample_sv_[k].dot(sample_p_[k] - p);
+  };
+  // Candidates (index i * mv + j, the start): (1) samples that are discrete local minima of
+  // the distance; (2) cells whose corners' gradients change sign in u and in v (a minimum
+  // inside), started at the nearest corner; (3) along the four edges, sample intervals
+  // whose tangential gradient changes sign (a minimum on or near the edge).
+  Best<kCandidates> best;
+  for (int i = 0; i < mu; ++i) {
+    for (int j = 0; j < mv; ++j) {
+      const double dij = d2(i, j);
+      bool local_min = true;
+      for (int a = std::max(i - 1, 0); a <= std::min(i + 1, mu - 1) && local_min; ++a)
+        for (int b = std::max(j - 1, 0); b <= std::min(j + 1, mv - 1); ++b)
+          if ((a != i || b != j) && d2(a, b) < dij) {
+            local_min = false;
+            break;
+          }
+      if (local_min) best.add(i * mv + j, dij);
+      if (i + 1 < mu && j + 1 < mv) {
+        double umin = kInf, umax = -kInf, vmin = kInf, vmax = -kInf, dmin = kInf;
+        int start = 0;
+        for (int a = i; a <= i + 1; ++a) {
+          for (int b = j; b <= j + 1; ++b) {
+            const double x = gu(a, b), y = gv(a, b), dd = d2(a, b);
+            umin = std::min(umin, x), umax = std::max(umax, x);
+            vmin = std::min(vmin, y), vmax = std::max(vmax, y);
+            if (dd < dmin) dmin = dd, start = a * mv + b;
+          }
+        }
+        if (umin <= 0.0 && umax >= 0.0 && vmin <= 0.0 && vmax >= 0.0) best.add(start, dmin);
+      }
+    }
+  }
+  for (int e = 0; e < 2; ++e) {
+    const int i = e == 0 ? 0 : mu - 1;
+    for (int j = 0; j + 1 < mv; ++j)
+      if (gv(i, j) <= 0.0 && gv(i, j + 1) >= 0.0) {
+        const bool first = d2(i, j) <= d2(i, j + 1);
+        best.add(i * mv + (first ? j : j + 1), std::min(d2(i, j), d2(i, j + 1)));
+      }
+    const int j = e == 0 ? 0 : mv - 1;
+    for (int a = 0; a + 1 < mu; ++a)
+      if (gu(a, j) <= 0.0 && gu(a + 1, j) >= 0.0) {
+        const bool first = d2(a, j) <= d2(a + 1, j);
+        best.add((first ? a : a + 1) * mv + j, std::min(d2(a, j), d2(a + 1, j)));
+      }
+  }
+  auto eval = [&](const Eigen::Vector2d& x, Eigen::Vector2d& g, Eigen::Matrix2d& H) {
+    SurfaceDerivatives d;
+    derivatives(x[0], x[1], 2, d);
+    const Eigen::Vector3d r = d(0, 0) - p;
+    g << d(1, 0).dot(r), d(0, 1).dot(r);
+    H(0, 0) = d(1, 0).squaredNorm() + d(2, 0).dot(r);
+    H(1, 1) = d(0, 1).squaredNorm() + d(0, 2).dot(r);
+    H(0, 1) = H(1, 0) = d(1, 0).dot(d(0, 1)) + d(1, 1).dot(r);
+    return 0.5 * r.squaredNorm();
+  };
+  double best_f = kInf;
+  Eigen::Vector2d best_x = lower_;
+  for (int c = 0; c < best.count; ++c) {
+    const int k = best.index[c];
+    Eigen::Vector2d x(sample_u_[static_cast<size_t>(k / mv)], sample_v_[static_cast<size_t>(k % mv)]);
+    const double f = refine<2>(x, lower_, upper_, eval);
+    if (f < best_f) {
+      best_f = f;
+      best_x = x;
+    }
+  }
+  // polish: along a crease (a knot of full multiplicity) the coupled steps zigzag; the
+  // 1-D problems with u, then v held, then both free again settle them
+  for (int round = 0; round < 3 && best.count > 0; ++round) {
+    const double f0 = best_f;
+    for (int fixed = 0; fixed < 3; ++fixed) {
+      Eigen::Vector2d lo = lower_, hi = upper_, x = best_x;
+      if (fixed < 2) lo[fixed] = hi[fixed] = x[fixed];
+      const double f = refine<2>(x, lo, hi, eval);
+      if (f < best_f) {
+        best_f = f;
+        best_x = x;
+      }
+    }
+    if (!(best_f < f0)) break;
+  }
+  point = evaluate(best_x[0], best_x[1]);
+  return best_x;
+}
+
+// ---- analytic shapes -------------------------------------------------------------------
+
+namespace {
+// d^k/dt^k of cos t and sin t
+double dcos(double t, int k) noexcept { return std::cos(t + k * 0.5 * kPi); }
+double dsin(double t, int k) noexcept { return std::sin(t + k * 0.5 * kPi); }
+}  // namespace
+
+Sphere::Sphere(const Eigen::Vector3d& center, double radius) : c_(center), r_(radius) {
+  require_finite("center", Eigen::VectorXd(center));
+  require_positive("radius", radius);
+}
+
+Eigen::Vector2d Sphere::lower() const noexcept { return {-kPi, -0.5 * kPi}; }
+Eigen::Vector2d Sphere::upper() const noexcept { return {kPi, 0.5 * kPi}; }
+
+Eigen::Vector3d Sphere::evaluate(double u, double v) const noexcept {
+  v = clamp(v, -0.5 * kPi, 0.5 * kPi);
+  return c_ + r_ * Eigen::Vector3d(std::cos(u) * std::cos(v), std::sin(u) * std::cos(v),
+                                   std::sin(v));
+}
+
+void Sphere::derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept {
+  const int nd = clamp_order(order);
+  v = clamp(v, -0.5 * kPi, 0.5 * kPi);
+  for (int k = 0; k <= nd; ++k) {
+    for (int l = 0; l <= nd; ++l) {
+      const Eigen::Vector3d e(dcos(u, k) * dcos(v, l), dsin(u, k) * dcos(v, l),
+                              k == 0 ? dsin(v, l) : 0.0);
+      d(k, l) = r_ * e;
+    }
+  }
+  d(0, 0) += c_;
+}
+
+Eigen::Vector3d Sphere::normal(double u, double v) const noexcept {
+  return (evaluate(u, v) - c_) / r_;
+}
+
+Eigen::Vector2d Sphere::closest_point(const Eigen::Vector3d& p,
+                                      Eigen::Vector3d& point) const noexcept {
+  const Eigen::Vector3d q = p - c_;
+  const double n = q.norm();
+  if (!(n > 0.0)) {
+    point = evaluate(0.0, 0.0);
+    return {0.0, 0.0};
+  }
+  point = c_ + (r_ / n) * q;
+  return {std::atan2(q[1], q[0]), std::atan2(q[2], std::hypot(q[0], q[1]))};
+}
+
+Cylinder::Cylinder(const Eigen::Vector3d& point, const Eigen::Vector3d& direction, double radius)
+    : a_(point), r_(radius) {
+  require_finite("point", Eigen::VectorXd(point));
+  d_ = safe_normalized(direction, "direction");
+  require_positive("radius", radius);
+  e1_ = d_.unitOrthogonal();
+  e2_ = d_.cross(e1_);
+}
+
+Eigen::Vector2d Cylinder::lower() const noexcept { return {-kPi, -kInf}; }
+Eigen::Vector2d Cylinder::upper() const noexcept { return {kPi, kInf}; }
+
+Eigen::Vector3d Cylinder::evaluate(double u, double v) const noexcept {
+  return a_ + r_ * (std::cos(u) * e1_ + std::sin(u) * e2_) + v * d_;
+}
+
+void Cylinder::derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept {
+  const int nd = clamp_order(order);
+  for (int k = 0; k <= nd; ++k)
+    for (int l = 0; l <= nd; ++l) d(k, l).setZero();
+  for (int k = 0; k <= nd; ++k) d(k, 0) = r_ * (dcos(u, k) * e1_ + dsin(u, k) * e2_);
+  d(0, 0) += a_ + v * d_;
+  if (nd >= 1) d(0, 1) = d_;
+}
+
+Eigen::Vector3d Cylinder::normal(double u, double) const noexcept {
+  return std::cos(u) * e1_ + std::sin(u) * e2_;
+}
+
+Eigen::Vector2d Cylinder::closest_point(const Eigen::Vector3d& p,
+                                        Eigen::Vector3d& point) const noexcept {
+  const Eigen::Vector3d q = p - a_;
+  const double v = q.dot(d_);
+  const double x = q.dot(e1_), y = q.dot(e2_);
+  const double u = (x == 0.0 && y == 0.0) ? 0.0 : std::atan2(y, x);
+  point = evaluate(u, v);
+  return {u, v};
+}
+
+Plane::Plane(const Eigen::Vector3d& point, const Eigen::Vector3d& normal) : o_(point) {
+  require_finite("point", Eigen::VectorXd(point));
+  n_ = safe_normalized(normal, "normal");
+  e1_ = n_.unitOrthogonal();
+  e2_ = n_.cross(e1_);
+}
+
+Eigen::Vector2d Plane::lower() const noexcept { return {-kInf, -kInf}; }
+Eigen::Vector2d Plane::upper() const noexcept { return {kInf, kInf}; }
+
+Eigen::Vector3d Plane::evaluate(double u, double v) const noexcept {
+  return o_ + u * e1_ + v * e2_;
+}
+
+void Plane::derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept {
+  const int nd = clamp_order(order);
+  for (int k = 0; k <= nd; ++k)
+    for (int l = 0; l <= nd; ++l) d(k, l).setZero();
+  d(0, 0) = evaluate(u, v);
+  if (nd >= 1) {
+    d(1, 0) = e1_;
+    d(0, 1) = e2_;
+  }
+}
+
+Eigen::Vector3d Plane::normal(double, double) const noexcept { return n_; }
+
+Eigen::Vector2d Plane::closest_point(const Eigen::Vector3d& p,
+                                     Eigen::Vector3d& point) const noexcept {
+  const Eigen::Vector3d q = p - o_;
+  const Eigen::Vector2d uv(q.dot(e1_), q.dot(e2_));
+  point = evaluate(uv[0], uv[1]);
+  return uv;
+}
+
+}  // namespace virtmech
