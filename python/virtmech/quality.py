@@ -28,7 +28,6 @@ from collections.abc import Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from itertools import product
-from multiprocessing import get_context
 from typing import Any
 
 import numpy as np
@@ -111,10 +110,13 @@ def _simulate(raw: dict) -> Run:
 def run_all(raws: Sequence[dict], workers: int | None = 1) -> list[Run]:
     """Simulates every raw scenario, in order; workers > 1 (None: the machine's cores) in a
     process pool."""
-    workers = os.cpu_count() or 1 if workers is None else workers
+    from .sweep import process_context
+
+    workers = (os.cpu_count() or 1) if workers is None else workers
     if workers <= 1 or len(raws) <= 1:
         return [_simulate(r) for r in raws]
-    with ProcessPoolExecutor(min(workers, len(raws)), mp_context=get_context("spawn")) as ex:
+    ctx = process_context(["virtmech.quality", "virtmech.sim.loop"])
+    with ProcessPoolExecutor(min(workers, len(raws)), mp_context=ctx) as ex:
         return list(ex.map(_simulate, raws))
 
 
@@ -287,7 +289,7 @@ def free_force(
             "ramp_s": 0.05,
         }
         if m["type"] == "PlanarArm":
-            th0 = _arm_angle(m, setup.point(rest)[-1])
+            th0 = float(rest.cols["arm_pos_angle"][-1])  # where the handle rests
             seg["theta"] = [th0, th0 + distance_m / m["length"]]
             seg["orientation"] = "path"
         else:
@@ -307,16 +309,6 @@ def free_force(
             "cycles": int(at.sum()),
         }
     return out
-
-
-def _arm_angle(m: dict, p: np.ndarray) -> float:
-    """The PlanarArm's angle for a handle position (from its zero direction, about its
-    normal)."""
-    n = _unit(m["normal"])
-    x = _unit(m["zero_direction"])
-    y = np.cross(n, x)
-    r = p - np.asarray(m["pivot"], dtype=float)
-    return float(math.atan2(r @ y, r @ x))
 
 
 def _tangent(m: dict) -> np.ndarray:

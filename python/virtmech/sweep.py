@@ -179,18 +179,24 @@ def _bar(total: int, label: str, enabled: bool):
     )
 
 
-def _run_process(scenarios: list, workers: int, bar) -> list[dict]:
+def process_context(preload: Sequence[str]):
+    """The multiprocessing context the process pools use: forkserver where there is one
+    (Linux, macOS), each worker forked from a server that has already imported `preload`;
+    spawn elsewhere. Never fork: the parent may hold threads (tqdm's monitor, a host
+    application's)."""
     import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    # forkserver where there is one (Linux, macOS): each worker is forked from a server
-    # that has already imported the simulation; spawn elsewhere. Never fork: the parent
-    # may hold threads (tqdm's monitor, a host application's)
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["virtmech.sweep", "virtmech.sim.loop", "virtmech.sim.output"])
-    else:  # pragma: no cover
-        ctx = mp.get_context("spawn")
+        ctx.set_forkserver_preload(list(preload))
+        return ctx
+    return mp.get_context("spawn")  # pragma: no cover
+
+
+def _run_process(scenarios: list, workers: int, bar) -> list[dict]:
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ctx = process_context(["virtmech.sweep", "virtmech.sim.loop", "virtmech.sim.output"])
     results: list[dict | None] = [None] * len(scenarios)
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
         futures = {pool.submit(run_point, s): k for k, s in enumerate(scenarios)}
