@@ -29,6 +29,7 @@ extern "C" {
 #define VM_STATUS_NOT_CONVERGED (1u << 3)
 #define VM_STATUS_WATCHDOG (1u << 4)
 #define VM_STATUS_PASSIVITY (1u << 5) /* the energy tank held back the range term */
+#define VM_STATUS_SWITCHING (1u << 6) /* a mechanism set blends between two members */
 #define VM_STATUS_FAULT_NONFINITE_INPUT (1u << 8)
 #define VM_STATUS_FAULT_NONFINITE_OUTPUT (1u << 9)
 #define VM_STATUS_FAULT_BAD_SIZE (1u << 10)

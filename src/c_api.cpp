@@ -20,6 +20,7 @@ static_assert(VM_STATUS_TORQUE_CLAMPED == status::kTorqueClamped);
 static_assert(VM_STATUS_NOT_CONVERGED == status::kNotConverged);
 static_assert(VM_STATUS_WATCHDOG == status::kWatchdog);
 static_assert(VM_STATUS_PASSIVITY == status::kPassivity);
+static_assert(VM_STATUS_SWITCHING == status::kSwitching);
 static_assert(VM_STATUS_FAULT_NONFINITE_INPUT == status::kFaultNonFiniteInput);
 static_assert(VM_STATUS_FAULT_NONFINITE_OUTPUT == status::kFaultNonFiniteOutput);
 static_assert(VM_STATUS_FAULT_BAD_SIZE == status::kFaultBadSize);

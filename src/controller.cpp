@@ -255,8 +255,13 @@ void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
   // warm start: the last placement moved on by its last change (placements follow the
   // handle smoothly, so this starts second-order close), when that change is between two
   // converged placements; the first cycle after a start, reset or fault starts where it is
-  const JointVector theta0 =
+  JointVector theta0 =
       !first && p.extrapolate ? warm_start(mech, opts, p.theta, p.theta_prev) : p.theta;
+  if (first) {
+    // a mechanism with several local optima starts near the global one
+    mech.seed(target, W, theta0);
+    theta0 = theta0.cwiseMax(mech.lower()).cwiseMin(mech.upper());
+  }
   JointVector theta;
   p.result = detail::track(mech, target, theta0, W, opts, theta, p.pose, p.J, p.error);
   p.extrapolate = !first && p.result.converged && p.converged;
@@ -561,6 +566,12 @@ void Controller::reset() noexcept {
   data_.range_scale = 1.0;
   data_.have_last_torque = false;
   data_.last_t = std::numeric_limits<double>::quiet_NaN();
+}
+
+void Controller::restart_energy() noexcept {
+  data_.energy = 0.0;
+  data_.range_scale = 1.0;
+  data_.have_last_torque = false;
 }
 
 std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,

@@ -85,6 +85,15 @@ Mechanism::Mechanism(std::string type, const std::vector<JointType>& kinds,
   }
 }
 
+void Mechanism::set_contact_joint(int i) {
+  if (i < 0 || i >= dof_ || kinds_[static_cast<size_t>(i)] != JointType::kPrismatic ||
+      lower_[i] != 0.0) {
+    throw std::invalid_argument("contact_joint: expected a prismatic joint with lower limit 0, "
+                                "got joint " + std::to_string(i));
+  }
+  contact_joint_ = i;
+}
+
 void Mechanism::forward(const double* x, Pose& T) const noexcept {
   Jacobian J;
   forward_jacobian(x, T, J);
@@ -225,6 +234,7 @@ Probe::Probe(const Eigen::Vector3d& plane_point, const Eigen::Vector3d& plane_no
       tangent_(tangent_or_default("tangent", tangent, plane_normal.normalized())),
       length_(length), unilateral_(unilateral) {
   require_finite("plane_point", plane_point);
+  if (unilateral) set_contact_joint(2);
 }
 
 namespace {
@@ -402,6 +412,7 @@ PointPivot::PointPivot(const Eigen::Vector3d& point, const Eigen::Vector3d& norm
       tangent_(tangent_or_default("tangent", tangent, normal.normalized())), length_(length),
       unilateral_(unilateral) {
   require_finite("point", point);
+  if (unilateral) set_contact_joint(0);
 }
 
 // the line is the tangent frame's x axis, the normal its z axis
@@ -427,6 +438,7 @@ LineGuide::LineGuide(const Eigen::Vector3d& point, const Eigen::Vector3d& direct
       normal_(tangent_or_default("normal", normal, direction.normalized())), length_(length),
       unilateral_(unilateral) {
   require_finite("point", point);
+  if (unilateral) set_contact_joint(1);
 }
 
 static JointVector home_within_limits(const KinematicChain& chain) {

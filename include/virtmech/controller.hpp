@@ -55,6 +55,7 @@ constexpr std::uint32_t kTorqueClamped = 1u << 2;   //!< torques scaled to the j
 constexpr std::uint32_t kNotConverged = 1u << 3;    //!< a placement hit its iteration cap
 constexpr std::uint32_t kWatchdog = 1u << 4;        //!< cycle gap exceeded the watchdog
 constexpr std::uint32_t kPassivity = 1u << 5;       //!< the energy tank held back the range term
+constexpr std::uint32_t kSwitching = 1u << 6;  //!< a MechanismSet blends between two members
 constexpr std::uint32_t kFaultNonFiniteInput = 1u << 8;   //!< q or dq not finite
 constexpr std::uint32_t kFaultNonFiniteOutput = 1u << 9;  //!< computation produced NaN/inf
 constexpr std::uint32_t kFaultBadSize = 1u << 10;         //!< q or dq of the wrong length
@@ -215,6 +216,9 @@ class Controller {
 
   /// Restarts: placements from the mechanism's home, ramp-in from zero.
   void reset() noexcept;
+  /// Empties the energy tank and forgets the last torque, as after a fault: for a cycle
+  /// whose torque was not applied (a MechanismSet's members not rendered).
+  void restart_energy() noexcept;
 
   const Device& device() const noexcept { return *device_; }
   const Mechanism& mechanism() const noexcept { return *mechanism_; }

@@ -90,6 +90,9 @@ class Surface {
 
   /// Mean and Gaussian curvature from the fundamental forms, with respect to normal().
   SurfaceCurvature curvature(double u, double v) const noexcept;
+  /// u is an angle that wraps (S(u + 2 pi, v) = S(u, v)): a mechanism on the surface leaves
+  /// it unbounded instead of stopping at lower()[0], upper()[0].
+  virtual bool periodic_u() const noexcept { return false; }
 };
 
 /// A NURBS curve of degree p with n control points, weights and n + p + 1 knots.
@@ -164,12 +167,17 @@ class NurbsSurface final : public Surface {
   std::vector<Eigen::Vector3d> sample_p_, sample_su_, sample_sv_;
 };
 
-/// Sphere S(u, v) = c + r (cos u cos v, sin u cos v, sin v): u the longitude in [-pi, pi],
-/// v the latitude in [-pi/2, pi/2]; the normal points outward.
+/// Sphere S(u, v) = c + r (cos u cos v e1 + sin u cos v e2 + sin v a): u the longitude in
+/// [-pi, pi] (periodic), v the latitude in [-pi/2, pi/2]; the normal points outward. `axis`
+/// a (normalised) points to the pole v = pi/2; e1 is world x made orthogonal to a (world y
+/// where a is along x), e2 = a x e1: the default axis z gives (e1, e2) = (x, y). The poles
+/// are the parametrisation's singular points: a mechanism on the sphere puts them where it
+/// is not used.
 class Sphere final : public Surface {
  public:
-  /// radius > 0. Throws std::invalid_argument naming the parameter.
-  Sphere(const Eigen::Vector3d& center, double radius);
+  /// radius > 0, axis non-zero. Throws std::invalid_argument naming the parameter.
+  Sphere(const Eigen::Vector3d& center, double radius,
+         const Eigen::Vector3d& axis = Eigen::Vector3d::UnitZ());
   Eigen::Vector2d lower() const noexcept override;
   Eigen::Vector2d upper() const noexcept override;
   Eigen::Vector3d evaluate(double u, double v) const noexcept override;
@@ -178,12 +186,17 @@ class Sphere final : public Surface {
   /// For p at the centre: the point at (u, v) = (0, 0).
   Eigen::Vector2d closest_point(const Eigen::Vector3d& p,
                                 Eigen::Vector3d& point) const noexcept override;
+  bool periodic_u() const noexcept override { return true; }
   const Eigen::Vector3d& center() const noexcept { return c_; }
   double radius() const noexcept { return r_; }
+  Eigen::Vector3d axis() const noexcept { return A_.col(2); }
+  Eigen::Vector3d e1() const noexcept { return A_.col(0); }
+  Eigen::Vector3d e2() const noexcept { return A_.col(1); }
 
  private:
   Eigen::Vector3d c_;
   double r_;
+  Eigen::Matrix3d A_;  // columns e1, e2, a
 };
 
 /// Infinite circular cylinder S(u, v) = a + r (cos u e1 + sin u e2) + v d: d the unit axis
@@ -201,6 +214,7 @@ class Cylinder final : public Surface {
   /// For p on the axis: the point at u = 0.
   Eigen::Vector2d closest_point(const Eigen::Vector3d& p,
                                 Eigen::Vector3d& point) const noexcept override;
+  bool periodic_u() const noexcept override { return true; }
   const Eigen::Vector3d& point() const noexcept { return a_; }
   const Eigen::Vector3d& direction() const noexcept { return d_; }
   double radius() const noexcept { return r_; }

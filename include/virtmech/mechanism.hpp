@@ -10,9 +10,11 @@
 #pragma once
 
 #include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "virtmech/geometry.hpp"
 #include "virtmech/kinematic_chain.hpp"
 
 namespace virtmech {
@@ -34,6 +36,9 @@ class Mechanism {
   const JointVector& upper() const noexcept { return upper_; }
   /// Kind of joint i (0 <= i < dof()): revolute [rad] or prismatic [m].
   JointType joint_type(int i) const noexcept { return kinds_[static_cast<size_t>(i)]; }
+  /// The lift-off joint of a unilateral mechanism (its lower limit 0 is the contact: the
+  /// tip touches while that joint is held at it), or -1 for a bilateral one.
+  int contact_joint() const noexcept { return contact_joint_; }
 
   /// Handle pose at joint values x (dof() entries). The default evaluates
   /// forward_jacobian; override it when the pose alone is cheaper.
@@ -54,15 +59,28 @@ class Mechanism {
     return false;
   }
 
+  /// Optional start of the first placement (after a start, a reset or a fault) for the
+  /// handle at `target` with the placement's weights w: theta holds the last placement
+  /// (home at the start) and may be moved, within the limits, near the global optimum, so
+  /// that a mechanism whose placement has several local optima (a point on a curved surface
+  /// or path) starts in the right basin. The default keeps theta. noexcept,
+  /// allocation-free; may cost more than a cycle's placement (once).
+  virtual void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept {
+    (void)target, (void)w, (void)theta;
+  }
+
  protected:
   /// Validates and stores the joint description; throws std::invalid_argument naming the
   /// bad parameter. `home` is moved into the limits.
   Mechanism(std::string type, const std::vector<JointType>& kinds, const JointVector& lower,
             const JointVector& upper, const JointVector& home, double length_scale);
+  /// Names joint i the lift-off joint (lower limit 0; see contact_joint()).
+  void set_contact_joint(int i);
 
  private:
   std::string type_;
   int dof_ = 0;
+  int contact_joint_ = -1;
   std::array<JointType, kMaxDof> kinds_{};
   JointVector lower_, upper_, home_;
   double length_scale_ = 0.1;
@@ -182,6 +200,88 @@ class LineGuide final : public ChainMechanism {
   Eigen::Vector3d point_, direction_, normal_;
   double length_;
   bool unilateral_;
+};
+
+/// Paper Fig. 3 on any surface: the probe's tip slides on `surface` (joints u, v, the
+/// surface's parameters), three revolute joints meet at the tip (about t1, the rotated t2,
+/// the stylus) and the handle is `length` back along the stylus. The wrist's base at (u, v)
+/// is the surface frame B = [t1, n x t1, n], t1 = S_u / |S_u|, n = S_u x S_v normalised
+/// (the surface's normal): at wrist angles 0 the stylus points along -n, the hand on the
+/// side n points to. The wrist is singular only with the stylus along t1, in the tangent
+/// plane, which a probe touching the surface never is.
+///
+/// `unilateral`: the tip may leave the surface toward +n (a prismatic joint along n after
+/// u, v, lower limit 0): theta = [u, v, h, a, b, c]; else [u, v, a, b, c].
+/// u and v are limited to the surface's parameter bounds (u unbounded where it wraps,
+/// Surface::periodic_u) and count as prismatic for the placement's step cap. At a point
+/// where the parametrisation is singular (a sphere's pole) the mechanism loses a direction
+/// of motion and renders it as a constraint: put such points where the probe is not used.
+/// home: the middle of the parameter bounds (0 where unbounded); the first placement is
+/// seeded by the surface's global closest point (seed()).
+class SurfaceProbe final : public Mechanism {
+ public:
+  /// surface: non-null; length > 0. Throws std::invalid_argument naming the parameter.
+  SurfaceProbe(std::shared_ptr<const Surface> surface, double length, bool unilateral = false);
+  const Surface& surface() const noexcept { return *surface_; }
+  const std::shared_ptr<const Surface>& surface_ptr() const noexcept { return surface_; }
+  double length() const noexcept { return length_; }
+  bool unilateral() const noexcept { return unilateral_; }
+  void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept override;
+  /// The tip target (the handle's point `length` along its stylus) projected onto the
+  /// surface; the wrist angles of the handle's orientation there (tilted a little where w
+  /// weighs positions only: with the stylus exactly along the error the position-only
+  /// cost is stationary but not least, and Gauss-Newton would not leave it).
+  void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept override;
+
+ private:
+  std::shared_ptr<const Surface> surface_;
+  double length_;
+  bool unilateral_;
+};
+
+/// A probe whose tip is held on a curve, the path to trace (joint u, the curve's parameter,
+/// then RRR at the tip about the fixed base B = [t1, normal x t1, normal], t1 =
+/// any_orthogonal(normal)); the handle is `length` back along the stylus, which points
+/// along -normal at wrist angles 0. theta = [u, a, b, c]; u within the curve's bounds (the
+/// path's ends are stops), counted as prismatic for the step cap. The wrist is singular
+/// with the stylus along t1. The first placement is seeded by the global closest point.
+class CurveGuide final : public Mechanism {
+ public:
+  /// curve: non-null; length > 0; normal: unit (the side the hand is on).
+  CurveGuide(std::shared_ptr<const Curve> curve, double length,
+             const Eigen::Vector3d& normal = Eigen::Vector3d::UnitZ());
+  const Curve& curve() const noexcept { return *curve_; }
+  const std::shared_ptr<const Curve>& curve_ptr() const noexcept { return curve_; }
+  double length() const noexcept { return length_; }
+  const Eigen::Vector3d& normal() const noexcept { return normal_; }
+  void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept override;
+  void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept override;
+
+ private:
+  std::shared_ptr<const Curve> curve_;
+  double length_;
+  Eigen::Vector3d normal_;
+  Eigen::Matrix3d base_;
+};
+
+/// The handle itself held on a curve, its orientation free: joint u, then RRR about the
+/// handle point (base B as CurveGuide's; at wrist angles 0 the stylus points along
+/// -normal). theta = [u, a, b, c]. `length_scale` [m] weighs rotations against translations.
+class HandlePath final : public Mechanism {
+ public:
+  HandlePath(std::shared_ptr<const Curve> curve,
+             const Eigen::Vector3d& normal = Eigen::Vector3d::UnitZ(),
+             double length_scale = 0.1);
+  const Curve& curve() const noexcept { return *curve_; }
+  const std::shared_ptr<const Curve>& curve_ptr() const noexcept { return curve_; }
+  const Eigen::Vector3d& normal() const noexcept { return normal_; }
+  void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept override;
+  void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept override;
+
+ private:
+  std::shared_ptr<const Curve> curve_;
+  Eigen::Vector3d normal_;
+  Eigen::Matrix3d base_;
 };
 
 /// Any serial chain of revolute / prismatic joints as a mechanism.

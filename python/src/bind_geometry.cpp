@@ -5,7 +5,9 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 
+#include <initializer_list>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "virtmech/geometry.hpp"
@@ -123,6 +125,20 @@ nb::dict curvature_dict(const Surface& s, double u, double v) {
 
 }  // namespace
 
+// The constructor's arguments as a JSON-ready dict: {"type": type, key: self.attr, ...}
+// (arrays as nested lists).
+nb::dict shape_dict(nb::handle self, const char* type,
+                    std::initializer_list<std::pair<const char*, const char*>> keys) {
+  nb::dict d;
+  d["type"] = type;
+  for (const auto& [key, attr] : keys) {
+    nb::object v = self.attr(attr);
+    if (nb::hasattr(v, "tolist")) v = v.attr("tolist")();
+    d[key] = v;
+  }
+  return d;
+}
+
 void bind_geometry(nb::module_& m) {
   m.attr("MAX_NURBS_DEGREE") = kMaxNurbsDegree;
 
@@ -155,6 +171,8 @@ void bind_geometry(nb::module_& m) {
   nb::class_<Surface>(m, "Surface", "A parametric surface S(u, v) (base class).")
       .def_prop_ro("lower", &Surface::lower, "Lower parameter bounds (u, v) (may be -inf).")
       .def_prop_ro("upper", &Surface::upper, "Upper parameter bounds (u, v) (may be inf).")
+      .def_prop_ro("periodic_u", &Surface::periodic_u,
+                   "u is an angle that wraps (sphere, cylinder): unbounded on a mechanism.")
       .def("evaluate", &Surface::evaluate, "u"_a, "v"_a, "The point S(u, v) (3,).")
       .def("derivatives", &surface_derivatives, "u"_a, "v"_a, "order"_a = 2,
            "(order + 1, order + 1, 3): entry [k, l] = d^(k+l) S / du^k dv^l for every "
@@ -190,7 +208,12 @@ void bind_geometry(nb::module_& m) {
       .def_prop_ro("degree", &NurbsCurve::degree)
       .def_prop_ro("control_points", [](const NurbsCurve& c) { return Rows3(c.control_points()); })
       .def_prop_ro("weights", &NurbsCurve::weights)
-      .def_prop_ro("knots", &NurbsCurve::knots);
+      .def_prop_ro("knots", &NurbsCurve::knots)
+      .def("to_dict", [](nb::handle self) {
+        return shape_dict(self, "NurbsCurve", {{"control_points", "control_points"},
+                                               {"weights", "weights"}, {"knots", "knots"},
+                                               {"degree", "degree"}});
+      }, "The constructor's arguments as a JSON-ready dict (with 'type').");
 
   nb::class_<NurbsSurface, Surface>(m, "NurbsSurface",
                                     "A tensor-product NURBS surface (Piegl & Tiller).")
@@ -234,20 +257,37 @@ void bind_geometry(nb::module_& m) {
                    })
       .def_prop_ro("weights", &NurbsSurface::weights)
       .def_prop_ro("knots_u", &NurbsSurface::knots_u)
-      .def_prop_ro("knots_v", &NurbsSurface::knots_v);
+      .def_prop_ro("knots_v", &NurbsSurface::knots_v)
+      .def("to_dict", [](nb::handle self) {
+        return shape_dict(self, "NurbsSurface",
+                          {{"control_points", "control_points"}, {"weights", "weights"},
+                           {"knots_u", "knots_u"}, {"knots_v", "knots_v"},
+                           {"degree_u", "degree_u"}, {"degree_v", "degree_v"}});
+      }, "The constructor's arguments as a JSON-ready dict (with 'type').");
 
   nb::class_<Sphere, Surface>(
       m, "Sphere",
-      "Sphere S(u, v) = c + r (cos u cos v, sin u cos v, sin v): u the longitude in "
-      "[-pi, pi], v the latitude in [-pi/2, pi/2]; outward normal.")
+      "Sphere S(u, v) = c + r (cos u cos v e1 + sin u cos v e2 + sin v a): u the longitude "
+      "in [-pi, pi] (periodic), v the latitude in [-pi/2, pi/2]; outward normal. `axis` a "
+      "points to the pole v = pi/2; e1 = world x made orthogonal to a (y where a is along x), "
+      "e2 = a x e1: the default axis z gives (e1, e2) = (x, y).")
       .def(
           "__init__",
-          [](Sphere* self, nb::handle center, nb::handle radius) {
-            new (self) Sphere(to_point("center", center), to_number("radius", radius));
+          [](Sphere* self, nb::handle center, nb::handle radius, nb::handle axis) {
+            new (self) Sphere(to_point("center", center), to_number("radius", radius),
+                              axis.is_none() ? Eigen::Vector3d::UnitZ()
+                                             : to_point("axis", axis));
           },
-          "center"_a, "radius"_a)
+          "center"_a, "radius"_a, "axis"_a = nb::none())
       .def_prop_ro("center", &Sphere::center)
-      .def_prop_ro("radius", &Sphere::radius);
+      .def_prop_ro("radius", &Sphere::radius)
+      .def_prop_ro("axis", &Sphere::axis)
+      .def_prop_ro("e1", &Sphere::e1)
+      .def_prop_ro("e2", &Sphere::e2)
+      .def("to_dict", [](nb::handle self) {
+        return shape_dict(self, "Sphere",
+                          {{"center", "center"}, {"radius", "radius"}, {"axis", "axis"}});
+      }, "The constructor's arguments as a JSON-ready dict (with 'type').");
 
   nb::class_<Cylinder, Surface>(
       m, "Cylinder",
@@ -264,7 +304,11 @@ void bind_geometry(nb::module_& m) {
       .def_prop_ro("direction", &Cylinder::direction)
       .def_prop_ro("radius", &Cylinder::radius)
       .def_prop_ro("e1", &Cylinder::e1)
-      .def_prop_ro("e2", &Cylinder::e2);
+      .def_prop_ro("e2", &Cylinder::e2)
+      .def("to_dict", [](nb::handle self) {
+        return shape_dict(self, "Cylinder", {{"point", "point"}, {"direction", "direction"},
+                                             {"radius", "radius"}});
+      }, "The constructor's arguments as a JSON-ready dict (with 'type').");
 
   nb::class_<Plane, Surface>(
       m, "Plane",
@@ -280,5 +324,8 @@ void bind_geometry(nb::module_& m) {
       .def_prop_ro("normal_vector", [](const Plane& p) { return p.normal(); },
                    "The unit normal (3,).")
       .def_prop_ro("e1", &Plane::e1)
-      .def_prop_ro("e2", &Plane::e2);
+      .def_prop_ro("e2", &Plane::e2)
+      .def("to_dict", [](nb::handle self) {
+        return shape_dict(self, "Plane", {{"point", "point"}, {"normal", "normal_vector"}});
+      }, "The constructor's arguments as a JSON-ready dict (with 'type').");
 }

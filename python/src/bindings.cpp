@@ -246,6 +246,7 @@ nb::list status_names(std::uint32_t s) {
       {status::kNotConverged, "not_converged"},
       {status::kWatchdog, "watchdog"},
       {status::kPassivity, "passivity"},
+      {status::kSwitching, "switching"},
       {status::kFaultNonFiniteInput, "fault_nonfinite_input"},
       {status::kFaultNonFiniteOutput, "fault_nonfinite_output"},
       {status::kFaultBadSize, "fault_bad_size"},
@@ -363,6 +364,7 @@ NB_MODULE(_core, m) {
   m.attr("STATUS_NOT_CONVERGED") = status::kNotConverged;
   m.attr("STATUS_WATCHDOG") = status::kWatchdog;
   m.attr("STATUS_PASSIVITY") = status::kPassivity;
+  m.attr("STATUS_SWITCHING") = status::kSwitching;
   m.attr("STATUS_FAULT_NONFINITE_INPUT") = status::kFaultNonFiniteInput;
   m.attr("STATUS_FAULT_NONFINITE_OUTPUT") = status::kFaultNonFiniteOutput;
   m.attr("STATUS_FAULT_BAD_SIZE") = status::kFaultBadSize;
@@ -475,7 +477,10 @@ NB_MODULE(_core, m) {
       .def_prop_ro("length_scale", &Mechanism::length_scale,
                    "Characteristic length [m] weighting rotations against translations.")
       .def_prop_ro("joint_types", [](const Mechanism& self) { return joint_type_names(self); },
-                   "'revolute' or 'prismatic' per joint.");
+                   "'revolute' or 'prismatic' per joint.")
+      .def_prop_ro("contact_joint", &Mechanism::contact_joint,
+                   "The lift-off joint of a unilateral mechanism (held at its lower limit 0 "
+                   "while in contact), or -1.");
   nb::class_<ChainMechanism, Mechanism>(m, "ChainMechanism",
                                         "A mechanism that is a serial chain (base class).")
       .def_prop_ro("joints", [](const ChainMechanism& self) { return self.chain().joints(); });
@@ -593,6 +598,91 @@ NB_MODULE(_core, m) {
         d["length"] = a.length();
         d["normal"] = to_list(a.normal());
         d["unilateral"] = a.unilateral();
+        return d;
+      });
+
+  nb::class_<SurfaceProbe, Mechanism>(
+      m, "SurfaceProbe",
+      "Paper Fig. 3 on any surface: the probe's tip slides on `surface` (joints u, v), three "
+      "revolute joints meet at the tip over the surface frame [t1, n x t1, n] (t1 = S_u / "
+      "|S_u|, n the normal), the handle `length` back along the stylus, which points along -n "
+      "at wrist angles 0.")
+      .def(
+          "__init__",
+          [](SurfaceProbe* self, std::shared_ptr<const Surface> surface, nb::handle length,
+             bool unilateral) {
+            new (self) SurfaceProbe(std::move(surface), to_double("length", length), unilateral);
+          },
+          "surface"_a, "length"_a = 0.1, "unilateral"_a = false,
+          "surface: a Surface (NurbsSurface, Sphere, Cylinder, Plane); length [m]; "
+          "unilateral=True: the tip may leave the surface toward +n (a lift-off joint with "
+          "lower limit 0 after u, v), so the surface pushes but never pulls.")
+      .def_prop_ro("surface", &SurfaceProbe::surface_ptr)
+      .def_prop_ro("length", &SurfaceProbe::length)
+      .def_prop_ro("unilateral", &SurfaceProbe::unilateral)
+      .def("to_dict", [](nb::handle self) {
+        const auto& a = nb::cast<const SurfaceProbe&>(self);
+        nb::dict d;
+        d["type"] = "SurfaceProbe";
+        d["surface"] = self.attr("surface").attr("to_dict")();
+        d["length"] = a.length();
+        d["unilateral"] = a.unilateral();
+        return d;
+      });
+
+  nb::class_<CurveGuide, Mechanism>(
+      m, "CurveGuide",
+      "A probe whose tip is held on a curve, the path to trace (joint u, then RRR at the tip "
+      "over the fixed base [t1, normal x t1, normal]); the handle `length` back along the "
+      "stylus, which points along -normal at wrist angles 0.")
+      .def(
+          "__init__",
+          [](CurveGuide* self, std::shared_ptr<const Curve> curve, nb::handle length,
+             nb::handle normal) {
+            new (self) CurveGuide(std::move(curve), to_double("length", length),
+                                  normal.is_none() ? Eigen::Vector3d::UnitZ()
+                                                   : to_vec3("normal", normal));
+          },
+          "curve"_a, "length"_a = 0.1, "normal"_a = nb::none(),
+          "curve: a Curve (NurbsCurve); length [m]; normal: unit, the side the hand is on "
+          "(default +z).")
+      .def_prop_ro("curve", &CurveGuide::curve_ptr)
+      .def_prop_ro("length", &CurveGuide::length)
+      .def_prop_ro("normal", &CurveGuide::normal)
+      .def("to_dict", [](nb::handle self) {
+        const auto& a = nb::cast<const CurveGuide&>(self);
+        nb::dict d;
+        d["type"] = "CurveGuide";
+        d["curve"] = self.attr("curve").attr("to_dict")();
+        d["length"] = a.length();
+        d["normal"] = to_list(a.normal());
+        return d;
+      });
+
+  nb::class_<HandlePath, Mechanism>(
+      m, "HandlePath",
+      "The handle itself held on a curve, its orientation free (joint u, then RRR about the "
+      "handle point; the stylus along -normal at wrist angles 0).")
+      .def(
+          "__init__",
+          [](HandlePath* self, std::shared_ptr<const Curve> curve, nb::handle normal,
+             nb::handle length_scale) {
+            new (self) HandlePath(std::move(curve),
+                                  normal.is_none() ? Eigen::Vector3d::UnitZ()
+                                                   : to_vec3("normal", normal),
+                                  to_double("length_scale", length_scale));
+          },
+          "curve"_a, "normal"_a = nb::none(), "length_scale"_a = 0.1,
+          "curve: a Curve; normal: unit (default +z); length_scale [m] weighs rotations.")
+      .def_prop_ro("curve", &HandlePath::curve_ptr)
+      .def_prop_ro("normal", &HandlePath::normal)
+      .def("to_dict", [](nb::handle self) {
+        const auto& a = nb::cast<const HandlePath&>(self);
+        nb::dict d;
+        d["type"] = "HandlePath";
+        d["curve"] = self.attr("curve").attr("to_dict")();
+        d["normal"] = to_list(a.normal());
+        d["length_scale"] = a.length_scale();
         return d;
       });
 
@@ -1009,5 +1099,94 @@ NB_MODULE(_core, m) {
       .def_prop_ro("model", [](const Controller& c) { return model_dict(c.model()); },
                    "The resolved settings (every default filled in).")
       .def_prop_ro("last", [](const Controller& c) { return c.last(); }, "The last cycle's output.");
+
+  nb::class_<MechanismSetOutput>(m, "MechanismSetOutput",
+                                 "Everything one cycle of a MechanismSet reports.")
+      .def(nb::init<>())
+      .def_ro("cycle", &MechanismSetOutput::cycle,
+              "The rendered member's CycleOutput, torque and wrench the set's output (member "
+              "0's with zero force when none is engaged).")
+      .def_ro("active", &MechanismSetOutput::active, "The member rendered, -1 for none.")
+      .def_ro("switching", &MechanismSetOutput::switching,
+              "The output is moving from one member's force to another's at the set rates.")
+      .def_prop_ro("distance",
+                   [](const MechanismSetOutput& o) {
+                     return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(o.distance.data(), o.size));
+                   },
+                   "Each member's distance from the handle [m] (0 for a unilateral member in "
+                   "contact, its tip's height out of it).")
+      .def_prop_ro("contact",
+                   [](const MechanismSetOutput& o) {
+                     nb::list l;
+                     for (int i = 0; i < o.size; ++i) l.append(bool((o.contact >> i) & 1u));
+                     return l;
+                   },
+                   "Per member: unilateral and in contact.")
+      .def_prop_ro("torque", [](const MechanismSetOutput& o) { return Eigen::VectorXd(o.cycle.torque); })
+      .def_prop_ro("wrench", [](const MechanismSetOutput& o) { return o.cycle.wrench; })
+      .def_prop_ro("status", [](const MechanismSetOutput& o) { return o.cycle.status; })
+      .def_prop_ro("status_names", [](const MechanismSetOutput& o) { return status_names(o.cycle.status); });
+
+  nb::class_<MechanismSet>(
+      m, "MechanismSet",
+      "Several mechanisms on one device, at most one rendered per cycle: a member engages "
+      "within snap_distance [m] and lets go beyond release_distance (hysteresis; a "
+      "unilateral member's distance is its tip's height, 0 in contact); switching moves the "
+      "force at most force_rate [N/s] and moment_rate [N m/s].")
+      .def(
+          "__init__",
+          [](MechanismSet* self, std::shared_ptr<Device> device, int capacity,
+             double snap_distance, double release_distance, double force_rate,
+             double moment_rate, double period_s) {
+            MechanismSetSettings s;
+            s.snap_distance = snap_distance;
+            s.release_distance = release_distance;
+            s.force_rate = force_rate;
+            s.moment_rate = moment_rate;
+            s.period_s = period_s;
+            new (self) MechanismSet(std::move(device), capacity, s);
+          },
+          "device"_a, "capacity"_a = 4, nb::kw_only(),
+          "snap_distance"_a = MechanismSetSettings().snap_distance,
+          "release_distance"_a = MechanismSetSettings().release_distance,
+          "force_rate"_a = MechanismSetSettings().force_rate,
+          "moment_rate"_a = MechanismSetSettings().moment_rate,
+          "period_s"_a = MechanismSetSettings().period_s)
+      .def(
+          "add", [](MechanismSet& self, const Controller& member) { return self.add(member); },
+          "member"_a,
+          "Adds a member: a copy of a Controller of the set's device and the member's "
+          "mechanism (its settings as Controller's). Returns its index.")
+      .def(
+          "step",
+          [](MechanismSet& self, nb::handle q, nb::handle dq, double t, nb::handle out) {
+            const int n = self.device().dof();
+            const JointVector qv = joint_values("q", q, n);
+            const JointVector dqv = joint_values("dq", dq, n);
+            nb::object result;
+            if (out.is_none()) {
+              result = nb::cast(MechanismSetOutput());
+            } else if (nb::isinstance<MechanismSetOutput>(out)) {
+              result = nb::borrow(out);
+            } else {
+              throw nb::type_error(("out: expected a virtmech.MechanismSetOutput to fill, got " +
+                                    short_repr(out)).c_str());
+            }
+            self.step(qv.data(), dqv.data(), *nb::inst_ptr<MechanismSetOutput>(result), t);
+            return result;
+          },
+          "q"_a, "dq"_a, "t"_a = std::numeric_limits<double>::quiet_NaN(), nb::kw_only(),
+          "out"_a = nb::none(), "One servo cycle of every member; returns a MechanismSetOutput.")
+      .def("reset", &MechanismSet::reset)
+      .def_prop_ro("size", &MechanismSet::size)
+      .def_prop_ro("capacity", &MechanismSet::capacity)
+      .def_prop_ro("active", &MechanismSet::active)
+      .def("member", [](const MechanismSet& s, int i) {
+        if (i < 0 || i >= s.size()) {
+          throw nb::index_error(("i: expected 0 <= i < " + std::to_string(s.size()) + ", got " +
+                                 std::to_string(i)).c_str());
+        }
+        return std::const_pointer_cast<Mechanism>(s.member(i).mechanism_ptr());
+      }, "i"_a, "The i-th member's mechanism.");
 
 }

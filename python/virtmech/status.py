@@ -34,6 +34,9 @@ from ._core import (
     STATUS_RAMPING as RAMPING,
 )
 from ._core import (
+    STATUS_SWITCHING as SWITCHING,
+)
+from ._core import (
     STATUS_TORQUE_CLAMPED as TORQUE_CLAMPED,
 )
 from ._core import (
@@ -51,6 +54,7 @@ __all__ = [
     "NOT_CONVERGED",
     "OK",
     "RAMPING",
+    "SWITCHING",
     "TORQUE_CLAMPED",
     "WATCHDOG",
     "PASSIVITY",

@@ -24,7 +24,42 @@ struct Scene {
 inline std::vector<std::string> scene_names() {
   return {"OmniProbe",      "OmniProbeUnilateral", "OmniPlanarArm",
           "OmniPointPivot", "OmniLineGuide",       "Arm6RSerialChain",
-          "Arm6RProbeUnilateral", "Planar3RPlanarArm"};
+          "Arm6RProbeUnilateral", "Planar3RPlanarArm", "OmniSurfaceProbeNurbs",
+          "OmniSurfaceProbeSphereUnilateral", "Arm6RSurfaceProbeNurbs", "OmniCurveGuide",
+          "Arm6RHandlePath"};
+}
+
+/// A rational bicubic patch 12 cm x 9 cm under the Omni's handle (a bump and a saddle).
+inline std::shared_ptr<const NurbsSurface> test_patch(const Eigen::Vector3d& origin) {
+  const int nu = 5, nv = 4;
+  Eigen::MatrixX3d P(nu * nv, 3);
+  Eigen::MatrixXd W(nu, nv);
+  for (int i = 0; i < nu; ++i) {
+    for (int j = 0; j < nv; ++j) {
+      const double x = 0.03 * i - 0.06, y = 0.03 * j - 0.045;
+      P.row(i * nv + j) =
+          (origin + Eigen::Vector3d(x, y, 0.012 * std::cos(2.0 * x / 0.06) * std::cos(y / 0.045) +
+                                               0.2 * x * y))
+              .transpose();
+      W(i, j) = 1.0 + 0.1 * ((i + j) % 3);
+    }
+  }
+  Eigen::VectorXd ku(9), kv(8);
+  ku << 0, 0, 0, 0, 0.5, 1, 1, 1, 1;
+  kv << 0, 0, 0, 0, 1, 1, 1, 1;
+  return std::make_shared<NurbsSurface>(P, W, ku, kv, 3, 3);
+}
+
+/// A rational cubic 'S' about 8 cm tall in a plane z = const, moved by `origin`.
+inline std::shared_ptr<const NurbsCurve> test_letter(const Eigen::Vector3d& origin) {
+  Eigen::MatrixX3d P(7, 3);
+  P << 0.03, 0.04, 0, -0.01, 0.045, 0, -0.03, 0.02, 0, 0.0, 0.0, 0.005, 0.03, -0.02, 0, 0.01,
+      -0.045, 0, -0.03, -0.04, 0;
+  P.rowwise() += origin.transpose();
+  Eigen::VectorXd w(7), knots(11);
+  w << 1.0, 1.3, 0.8, 1.0, 1.2, 0.9, 1.0;
+  knots << 0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1;
+  return std::make_shared<NurbsCurve>(P, w, knots, 3);
 }
 
 inline Scene make_scene(const std::string& name) {
@@ -58,6 +93,25 @@ inline Scene make_scene(const std::string& name) {
   if (name == "Planar3RPlanarArm") {
     return {std::make_shared<Planar3R>(0.2, 0.2, Pose::Identity(), 50.0, 100.0),
             std::make_shared<PlanarArm>(Eigen::Vector3d(0.25, 0, 0), z, 0.1, x)};
+  }
+  if (name == "OmniSurfaceProbeNurbs") {
+    return {omni, std::make_shared<SurfaceProbe>(test_patch(Eigen::Vector3d(0, 0, -0.12)), 0.1)};
+  }
+  if (name == "OmniSurfaceProbeSphereUnilateral") {
+    return {omni, std::make_shared<SurfaceProbe>(
+                      std::make_shared<Sphere>(Eigen::Vector3d(0, -0.05, -0.1), 0.04, x), 0.1,
+                      true)};
+  }
+  if (name == "Arm6RSurfaceProbeNurbs") {
+    return {six_dof_arm(),
+            std::make_shared<SurfaceProbe>(test_patch(Eigen::Vector3d(0.45, 0, 0.1)), 0.1)};
+  }
+  if (name == "OmniCurveGuide") {
+    return {omni, std::make_shared<CurveGuide>(test_letter(Eigen::Vector3d(0, 0, -0.1)), 0.1, z)};
+  }
+  if (name == "Arm6RHandlePath") {
+    return {six_dof_arm(),
+            std::make_shared<HandlePath>(test_letter(Eigen::Vector3d(0.3, 0, 0.2)), z, 0.1)};
   }
   throw std::invalid_argument("make_scene: unknown scene " + name);
 }
@@ -97,6 +151,39 @@ inline void run_cycles(Controller& c, int cycles, JointVector& q, JointVector& d
       c.step(Eigen::Map<const Eigen::VectorXd>(q.data(), n),
              Eigen::Map<const Eigen::VectorXd>(dq.data(), n), out, t);
     }
+  }
+}
+
+/// A MechanismSet of four members on the Omni (a NURBS SurfaceProbe, a unilateral plane
+/// Probe, two CurveGuides), as the real-time tests run it.
+inline MechanismSet make_set() {
+  const Eigen::Vector3d y = Eigen::Vector3d::UnitY(), z = Eigen::Vector3d::UnitZ();
+  auto omni = std::make_shared<PhantomOmni>();
+  MechanismSetSettings ss;
+  ss.snap_distance = 0.01;
+  ss.release_distance = 0.02;
+  MechanismSet set(omni, 4, ss);
+  set.add(std::make_shared<SurfaceProbe>(test_patch(Eigen::Vector3d(0, 0, -0.12)), 0.1),
+          cycle_settings());
+  set.add(std::make_shared<Probe>(-0.02 * y, y, 0.1, Eigen::Vector3d::Zero(), true),
+          cycle_settings());
+  set.add(std::make_shared<CurveGuide>(test_letter(Eigen::Vector3d(0, 0, -0.1)), 0.1, z),
+          cycle_settings());
+  set.add(std::make_shared<CurveGuide>(test_letter(Eigen::Vector3d(0.02, 0.01, -0.08)), 0.1, z),
+          cycle_settings());
+  return set;
+}
+
+/// run_cycles for a set.
+inline void run_set_cycles(MechanismSet& set, int cycles, JointVector& q, JointVector& dq,
+                           MechanismSetOutput& out) {
+  for (int k = 0; k < cycles; ++k) {
+    joint_state(k, q, dq);
+    double t = k * 1e-3;
+    if (k == cycles / 2) q[0] = std::numeric_limits<double>::quiet_NaN();
+    if (k >= 3 * cycles / 4) t += 1.0;
+    if (k == 3 * cycles / 4) set.reset();
+    set.step(q.data(), dq.data(), out, t);
   }
 }
 

@@ -315,6 +315,20 @@ INSTANTIATE_TEST_SUITE_P(Scenes, CycleAllocation, testing::ValuesIn(scene_names(
                            return info.param;
                          });
 
+TEST(Allocation, MechanismSetOfFourAllocatesAndFreesNothing) {
+  MechanismSet set = make_set();
+  MechanismSetOutput out;
+  JointVector q(6), dq(6);
+  start_heap_count();
+  run_set_cycles(set, kCycles, q, dq, out);
+  const HeapCount n = stop_heap_count();
+  EXPECT_EQ(n.allocations, 0);
+  EXPECT_EQ(n.frees, 0);
+  EXPECT_EQ(n.news, 0);
+  EXPECT_EQ(out.cycle.status & status::kFaultMask, 0u);
+  EXPECT_TRUE(out.cycle.torque.allFinite());
+}
+
 TEST(Allocation, CApiStepAndDiagnosticsAllocateNothing) {
   for (vm_mechanism_type type : kCApiMechanisms) {
     CApiLoop loop(type);
@@ -350,6 +364,13 @@ TEST(Realtime, CycleCallsAreNoexcept) {
                                  0.0)),
                 "Controller::step(Ref, t) may throw");
   static_assert(noexcept(c->reset()), "Controller::reset may throw");
+  MechanismSet* set = nullptr;
+  MechanismSetOutput* set_out = nullptr;
+  static_assert(noexcept(set->step(x, x, *set_out)), "MechanismSet::step may throw");
+  static_assert(noexcept(set->reset()), "MechanismSet::reset may throw");
+  static_assert(noexcept(m->seed(*T, std::declval<const Vector6&>(),
+                                 std::declval<JointVector&>())),
+                "Mechanism::seed may throw");
   static_assert(noexcept(m->forward_jacobian(x, *T, *J)), "Mechanism::forward_jacobian may throw");
   static_assert(noexcept(m->forward(x, *T)), "Mechanism::forward may throw");
   static_assert(noexcept(d->forward_jacobian(x, *T, *J)), "Device::forward_jacobian may throw");

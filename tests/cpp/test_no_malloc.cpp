@@ -87,6 +87,17 @@ INSTANTIATE_TEST_SUITE_P(Scenes, CycleNoMalloc, testing::ValuesIn(scene_names())
                            return info.param;
                          });
 
+TEST(NoMalloc, MechanismSetOfFour) {
+  MechanismSet set = make_set();
+  MechanismSetOutput out;
+  JointVector q(6), dq(6);
+  {
+    NoEigenHeap guard;
+    run_set_cycles(set, kCycles, q, dq, out);
+  }
+  EXPECT_EQ(out.cycle.status & status::kFaultMask, 0u);
+}
+
 TEST(NoMalloc, CApiStepAndDiagnostics) {
   for (vm_mechanism_type type : kCApiMechanisms) {
     CApiLoop loop(type);

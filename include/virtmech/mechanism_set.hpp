@@ -1,0 +1,92 @@
+// Several mechanisms at once: a MechanismSet holds up to a fixed number of members (each a
+// Controller of its own mechanism on the one device) and renders at most one of them per
+// cycle. A member engages when the handle comes within a snap distance of it and lets go
+// beyond a larger release distance (hysteresis, as OpenHaptics' HL constraints snap); a
+// unilateral member's distance is its tip's height above its surface, zero in contact, so it
+// engages on contact at the latest. When the rendered member changes, the output wrench
+// moves from the old one to the new one at no more than a set rate, so that switching never
+// steps the force. docs/theory.md, section 7.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "virtmech/controller.hpp"
+
+namespace virtmech {
+
+/// Largest capacity of a MechanismSet (fixed-size diagnostics).
+constexpr int kMaxSetMembers = 16;
+
+struct MechanismSetSettings {
+  double snap_distance = 0.005;     //!< a member engages within this distance [m]
+  double release_distance = 0.010;  //!< ... and lets go beyond this one [m] (> snap)
+  double force_rate = 100.0;        //!< largest change of the force while switching [N/s]
+  double moment_rate = 1.0;         //!< largest change of the moment while switching [N·m/s]
+  double period_s = 1e-3;           //!< servo period [s], for the rates
+};
+
+/// Everything one cycle of a set reports. Fixed capacity: copying never allocates.
+struct MechanismSetOutput {
+  /// The rendered member's cycle with torque and wrench replaced by the set's output (while
+  /// switching, the blend); with no member engaged, member 0's cycle with zero force.
+  CycleOutput cycle;
+  int active = -1;  //!< the member rendered, -1 for none
+  int size = 0;     //!< members in the set
+  /// Each member's distance from the handle [m]: the larger position error of its two
+  /// placements (the un-powered one is where the user's tip is on an under-actuated
+  /// device); for a unilateral member out of contact its tip's height, in contact 0.
+  std::array<double, kMaxSetMembers> distance{};
+  std::uint32_t contact = 0;  //!< bit i: member i is unilateral and in contact
+  bool switching = false;     //!< the output is moving from one member's force to another's
+};
+
+class MechanismSet {
+ public:
+  /// capacity in 1..kMaxSetMembers; settings checked (throws std::invalid_argument).
+  MechanismSet(std::shared_ptr<const Device> device, int capacity,
+               const MechanismSetSettings& settings = MechanismSetSettings());
+  MechanismSet(const MechanismSet&) = delete;
+  MechanismSet& operator=(const MechanismSet&) = delete;
+  MechanismSet(MechanismSet&&) = default;
+  MechanismSet& operator=(MechanismSet&&) = default;
+
+  /// Adds a member (a copy of `member`, whose device must be this set's). Not real-time
+  /// (allocates); throws std::invalid_argument past the capacity or for another device.
+  /// Returns the member's index.
+  int add(const Controller& member);
+  /// As above, building the member's controller.
+  int add(std::shared_ptr<const Mechanism> mechanism,
+          const ControllerSettings& settings = ControllerSettings());
+
+  /// One servo cycle: every member steps (their placements follow the handle), the set
+  /// chooses the member to render and blends its force in. noexcept, allocation-free.
+  /// With no member added the torque is zero.
+  std::uint32_t step(const double* q, const double* dq, MechanismSetOutput& out,
+                     double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
+
+  /// Restarts every member and the selection.
+  void reset() noexcept;
+
+  int size() const noexcept { return static_cast<int>(members_.size()); }
+  int capacity() const noexcept { return capacity_; }
+  const Device& device() const noexcept { return *device_; }
+  const Controller& member(int i) const { return *members_.at(static_cast<size_t>(i)); }
+  const MechanismSetSettings& settings() const noexcept { return settings_; }
+  int active() const noexcept { return active_; }
+
+ private:
+  std::shared_ptr<const Device> device_;
+  int capacity_;
+  MechanismSetSettings settings_;
+  std::vector<std::unique_ptr<Controller>> members_;
+  std::vector<CycleOutput> outputs_;
+  int active_ = -1;
+  bool switching_ = false;
+  Vector6 wrench_ = Vector6::Zero();  // the wrench output last cycle
+};
+
+}  // namespace virtmech

@@ -1,0 +1,183 @@
+#include "virtmech/mechanism_set.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "small_products.hpp"
+#include "virtmech/validate.hpp"
+
+namespace virtmech {
+
+MechanismSet::MechanismSet(std::shared_ptr<const Device> device, int capacity,
+                           const MechanismSetSettings& settings)
+    : device_(std::move(device)), capacity_(capacity), settings_(settings) {
+  if (!device_) throw std::invalid_argument("device: expected a device, got null");
+  if (capacity < 1 || capacity > kMaxSetMembers) {
+    std::ostringstream os;
+    os << "capacity: expected 1 to " << kMaxSetMembers << " members, got " << capacity;
+    throw std::invalid_argument(os.str());
+  }
+  require_positive("snap_distance", settings.snap_distance);
+  require_finite("release_distance", settings.release_distance);
+  if (!(settings.release_distance >= settings.snap_distance)) {
+    std::ostringstream os;
+    os << "release_distance: expected at least snap_distance = " << settings.snap_distance
+       << " m (the hysteresis), got " << settings.release_distance;
+    throw std::invalid_argument(os.str());
+  }
+  require_positive("force_rate", settings.force_rate);
+  require_positive("moment_rate", settings.moment_rate);
+  require_positive("period_s", settings.period_s);
+  members_.reserve(static_cast<size_t>(capacity));
+  outputs_.resize(static_cast<size_t>(capacity));
+}
+
+int MechanismSet::add(const Controller& member) {
+  if (size() >= capacity_) {
+    std::ostringstream os;
+    os << "member: the set is full (capacity " << capacity_ << ")";
+    throw std::invalid_argument(os.str());
+  }
+  if (member.device_ptr() != device_) {
+    throw std::invalid_argument("member: expected a controller of the set's device, got one of "
+                                "another device object");
+  }
+  members_.push_back(std::make_unique<Controller>(member));
+  return size() - 1;
+}
+
+int MechanismSet::add(std::shared_ptr<const Mechanism> mechanism,
+                      const ControllerSettings& settings) {
+  return add(Controller(device_, std::move(mechanism), settings));
+}
+
+void MechanismSet::reset() noexcept {
+  for (auto& m : members_) m->reset();
+  active_ = -1;
+  switching_ = false;
+  wrench_.setZero();
+}
+
+namespace {
+
+// A member's distance from the handle (MechanismSetOutput::distance).
+double member_distance(const Mechanism& mech, const CycleOutput& o) noexcept {
+  const int c = mech.contact_joint();
+  if (c >= 0) {
+    const bool touching = ((o.active | o.active_star) >> c) & 1u;
+    if (touching) return 0.0;
+    // the tip's height where the user holds it (the un-powered placement; the nearest one
+    // when the law has none, theta_star then equals theta)
+    return std::max(o.theta_star[c], 0.0);
+  }
+  return std::max(o.error.head<3>().norm(), o.error_star.head<3>().norm());
+}
+
+}  // namespace
+
+std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSetOutput& out,
+                                 double t_s) noexcept {
+  const int n = size();
+  out.size = n;
+  out.contact = 0;
+  out.distance.fill(0.0);
+  if (n == 0) {
+    out.cycle.torque.setZero(device_->dof());
+    out.cycle.wrench.setZero();
+    out.cycle.status = status::kOk;
+    out.active = -1;
+    out.switching = false;
+    return status::kOk;
+  }
+  std::uint32_t faults = 0;
+  for (int i = 0; i < n; ++i) {
+    CycleOutput& o = outputs_[static_cast<size_t>(i)];
+    faults |= members_[static_cast<size_t>(i)]->step(q, dq, o, t_s) & status::kFaultMask;
+    const Mechanism& mech = members_[static_cast<size_t>(i)]->mechanism();
+    out.distance[static_cast<size_t>(i)] = member_distance(mech, o);
+    const int c = mech.contact_joint();
+    if (c >= 0 && (((o.active | o.active_star) >> c) & 1u)) out.contact |= 1u << i;
+  }
+
+  // the member to render: the engaged one while within the release distance, else the
+  // nearest within the snap distance
+  int chosen = active_;
+  if (chosen >= 0 && !(out.distance[static_cast<size_t>(chosen)] <= settings_.release_distance)) {
+    chosen = -1;
+  }
+  if (chosen < 0) {
+    double best = settings_.snap_distance;
+    for (int i = 0; i < n; ++i) {
+      if (out.distance[static_cast<size_t>(i)] < best) {
+        best = out.distance[static_cast<size_t>(i)];
+        chosen = i;
+      }
+    }
+  }
+  if (chosen != active_) switching_ = true;
+  active_ = chosen;
+  // the members not rendered did no work: their tanks start afresh when they are
+  for (int i = 0; i < n; ++i) {
+    if (i != active_) members_[static_cast<size_t>(i)]->restart_energy();
+  }
+
+  const CycleOutput& src = outputs_[static_cast<size_t>(active_ >= 0 ? active_ : 0)];
+  out.cycle = src;
+  out.active = active_;
+  if (faults) {
+    // the members share the device's input: they fault together; zero torque
+    out.cycle.torque.setZero(device_->dof());
+    out.cycle.wrench.setZero();
+    out.cycle.status |= faults;
+    wrench_.setZero();
+    switching_ = false;
+    out.switching = false;
+    return out.cycle.status;
+  }
+  if (active_ < 0) {
+    out.cycle.torque.setZero(device_->dof());
+    out.cycle.wrench.setZero();
+    out.cycle.wrench_null.setZero();
+    out.cycle.wrench_range.setZero();
+  }
+  if (switching_) {
+    // move from the last output toward the new member's at the set rates
+    const Vector6 target = out.cycle.wrench;
+    const Vector6 change = target - wrench_;
+    double s = 1.0;
+    const double df = change.head<3>().norm(), dm = change.tail<3>().norm();
+    const double max_f = settings_.force_rate * settings_.period_s;
+    const double max_m = settings_.moment_rate * settings_.period_s;
+    if (df > max_f) s = std::min(s, max_f / df);
+    if (dm > max_m) s = std::min(s, max_m / dm);
+    if (s < 1.0) {
+      Vector6 f = wrench_ + s * change;
+      // tau = J_R^T f, the passive joints at zero (the blend of two renderable wrenches
+      // is renderable), within the joint torque limits
+      const Controller& any = *members_[0];
+      detail::jacobian_transpose_times(any.data().J_R, f, out.cycle.torque);
+      double tscale = 1.0;
+      for (int i = 0; i < device_->dof(); ++i) {
+        if (!device_->actuated(i)) {
+          out.cycle.torque[i] = 0.0;
+          continue;
+        }
+        const double a = std::abs(out.cycle.torque[i]);
+        if (a > device_->torque_limit()[i]) tscale = std::min(tscale, device_->torque_limit()[i] / a);
+      }
+      out.cycle.torque *= tscale;
+      f *= tscale;
+      out.cycle.wrench = f;
+      out.cycle.status |= status::kSwitching;
+    } else {
+      switching_ = false;
+    }
+  }
+  wrench_ = out.cycle.wrench;
+  out.switching = switching_;
+  return out.cycle.status;
+}
+
+}  // namespace virtmech

@@ -1,0 +1,283 @@
+// Mechanisms on a geometry: SurfaceProbe (a probe's tip on any surface), CurveGuide (a
+// probe's tip on a curve), HandlePath (the handle on a curve). docs/theory.md, section 7.
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "closed_form.hpp"
+#include "virtmech/mechanism.hpp"
+#include "virtmech/se3.hpp"
+#include "virtmech/validate.hpp"
+
+namespace virtmech {
+
+namespace {
+
+constexpr double kTiny = 1e-300;
+
+// the base of a probe's wrist for a fixed normal: [t1, n x t1, n]
+Eigen::Matrix3d fixed_base(const Eigen::Vector3d& n) {
+  const Eigen::Vector3d t1 = any_orthogonal(n);
+  Eigen::Matrix3d B;
+  B << t1, n.cross(t1), n;
+  return B;
+}
+
+// Rx(a) Ry(b) Rz(c)
+Eigen::Matrix3d euler_xyz(const double* abc) noexcept {
+  return (Eigen::AngleAxisd(abc[0], Eigen::Vector3d::UnitX()) *
+          Eigen::AngleAxisd(abc[1], Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(abc[2], Eigen::Vector3d::UnitZ()))
+      .toRotationMatrix();
+}
+
+// The handle pose of a probe with its tip at `tip`, wrist base B and wrist angles abc,
+// `length` from the tip along the stylus (R_tip z); the wrist's three columns of J from
+// column `col`: axes B x, B Rx(a) y and the stylus, all through the tip.
+void probe_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& tip, const double* abc,
+                 double length, int col, Pose& T, Jacobian& J) noexcept {
+  const Eigen::Matrix3d R_tip = B * euler_xyz(abc);
+  const Eigen::Vector3d arm = length * R_tip.col(2);  // tip to handle
+  // the handle: the tip frame turned a half turn about x (z_handle = -z_tip)
+  T.linear() << R_tip.col(0), -R_tip.col(1), -R_tip.col(2);
+  T.translation() = tip + arm;
+  T.makeAffine();
+  const double ca = std::cos(abc[0]), sa = std::sin(abc[0]);
+  const Eigen::Vector3d axes[3] = {B.col(0), ca * B.col(1) + sa * B.col(2), R_tip.col(2)};
+  for (int i = 0; i < 3; ++i) J.col(col + i) << axes[i].cross(arm), axes[i];
+}
+
+// Wrist angles of a handle orientation R_h over the base B (R_tip = R_h Rx(pi)), nearest
+// the start's.
+Eigen::Vector3d wrist_angles(const Eigen::Matrix3d& B, const Eigen::Matrix3d& R_h,
+                             const Eigen::Vector3d& start) noexcept {
+  Eigen::Matrix3d R_tip;
+  R_tip << R_h.col(0), -R_h.col(1), -R_h.col(2);
+  double ca, sa;
+  return detail::euler_xyz_nearest(B.transpose() * R_tip, start, ca, sa);
+}
+
+// The surface frame B = [t1, n x t1, n] at S's derivatives d (order 2), its angular rates
+// w_u, w_v (dB/du = [w_u]x B) and the normal's derivatives n_u, n_v. At a degenerate point
+// (S_u or S_u x S_v vanishing) the missing vectors are completed and their rates left zero.
+struct SurfaceFrame {
+  Eigen::Matrix3d B;
+  Eigen::Vector3d w_u, w_v, n_u, n_v;
+};
+
+void surface_frame(const Surface& s, double u, double v, const SurfaceDerivatives& d,
+                   SurfaceFrame& f) noexcept {
+  const Eigen::Vector3d& Su = d(1, 0);
+  const Eigen::Vector3d& Sv = d(0, 1);
+  const Eigen::Vector3d m = Su.cross(Sv);
+  const double mn = m.norm(), sun = Su.norm();
+  const bool regular = mn > 1e-12 * std::max(Su.squaredNorm() + Sv.squaredNorm(), kTiny) &&
+                       sun > kTiny;
+  if (!regular) {
+    const Eigen::Vector3d n = s.normal(u, v);
+    Eigen::Vector3d t1 = Su - Su.dot(n) * n;
+    t1 = t1.norm() > kTiny ? Eigen::Vector3d(t1.normalized()) : any_orthogonal(n);
+    f.B << t1, n.cross(t1), n;
+    f.w_u.setZero();
+    f.w_v.setZero();
+    f.n_u.setZero();
+    f.n_v.setZero();
+    return;
+  }
+  const Eigen::Vector3d n = m / mn;
+  const Eigen::Vector3d t1 = Su / sun;
+  const Eigen::Vector3d t2 = n.cross(t1);
+  f.B << t1, t2, n;
+  // derivatives of the unit vectors: d(x / |x|) = (I - x^ x^T) dx / |x|
+  const auto unit_rate = [](const Eigen::Vector3d& e, double norm, const Eigen::Vector3d& dx) {
+    return Eigen::Vector3d((dx - e.dot(dx) * e) / norm);
+  };
+  const Eigen::Vector3d m_u = d(2, 0).cross(Sv) + Su.cross(d(1, 1));
+  const Eigen::Vector3d m_v = d(1, 1).cross(Sv) + Su.cross(d(0, 2));
+  f.n_u = unit_rate(n, mn, m_u);
+  f.n_v = unit_rate(n, mn, m_v);
+  const Eigen::Vector3d t1_u = unit_rate(t1, sun, d(2, 0));
+  const Eigen::Vector3d t1_v = unit_rate(t1, sun, d(1, 1));
+  const Eigen::Vector3d t2_u = f.n_u.cross(t1) + n.cross(t1_u);
+  const Eigen::Vector3d t2_v = f.n_v.cross(t1) + n.cross(t1_v);
+  // the angular rate of an orthonormal frame: w = (sum_i b_i x db_i) / 2
+  f.w_u = 0.5 * (t1.cross(t1_u) + t2.cross(t2_u) + n.cross(f.n_u));
+  f.w_v = 0.5 * (t1.cross(t1_v) + t2.cross(t2_v) + n.cross(f.n_v));
+}
+
+std::vector<JointType> probe_kinds(int slides) {
+  std::vector<JointType> k(static_cast<size_t>(slides), JointType::kPrismatic);
+  for (int i = 0; i < 3; ++i) k.push_back(JointType::kRevolute);
+  return k;
+}
+
+const Surface& checked_surface(const std::shared_ptr<const Surface>& s) {
+  if (!s) throw std::invalid_argument("surface: expected a surface, got null");
+  return *s;
+}
+
+const Curve& checked_curve(const std::shared_ptr<const Curve>& c) {
+  if (!c) throw std::invalid_argument("curve: expected a curve, got null");
+  return *c;
+}
+
+double middle(double lo, double hi) {
+  if (std::isfinite(lo) && std::isfinite(hi)) return 0.5 * (lo + hi);
+  if (std::isfinite(lo)) return std::max(lo, 0.0);
+  if (std::isfinite(hi)) return std::min(hi, 0.0);
+  return 0.0;
+}
+
+JointVector surface_limit(const Surface& s, bool unilateral, bool upper) {
+  const int n = unilateral ? 6 : 5;
+  JointVector v = JointVector::Constant(n, upper ? kInf : -kInf);
+  const Eigen::Vector2d b = upper ? s.upper() : s.lower();
+  if (!s.periodic_u()) v[0] = b[0];
+  v[1] = b[1];
+  if (unilateral && !upper) v[2] = 0.0;
+  return v;
+}
+
+JointVector surface_home(const Surface& s, bool unilateral) {
+  JointVector h = JointVector::Zero(unilateral ? 6 : 5);
+  h[0] = s.periodic_u() ? 0.0 : middle(s.lower()[0], s.upper()[0]);
+  h[1] = middle(s.lower()[1], s.upper()[1]);
+  return h;
+}
+
+JointVector curve_limit(const Curve& c, bool upper) {
+  JointVector v = JointVector::Constant(4, upper ? kInf : -kInf);
+  v[0] = upper ? c.upper() : c.lower();
+  return v;
+}
+
+JointVector curve_home(const Curve& c) {
+  JointVector h = JointVector::Zero(4);
+  h[0] = middle(c.lower(), c.upper());
+  return h;
+}
+
+double positive_length(const std::string& name, double length) {
+  require_positive(name, length);
+  return length;
+}
+
+// A probe's seed matches the handle's orientation. Where the weights count positions only
+// (an under-actuated device's nearest placement), a stylus along the position error is a
+// stationary point of the cost that is not its least (tilting reaches the handle), and
+// Gauss-Newton, which sees no curvature, would stay: start tilted a little instead.
+void tilt_if_positions_only(const Vector6& w, double length, JointVector& theta,
+                            int wrist) noexcept {
+  constexpr double kTilt = 0.1;  // [rad]
+  const double positions = w.head<3>().minCoeff();
+  const double rotations = w.tail<3>().maxCoeff() / (length * length);
+  if (rotations < 1e-3 * positions) theta[wrist + 1] += kTilt;
+}
+
+// the tip a handle pose points to: `length` along its stylus (local z)
+Eigen::Vector3d tip_of(const Pose& handle, double length) noexcept {
+  return handle.translation() + length * handle.linear().col(2);
+}
+
+}  // namespace
+
+// --- SurfaceProbe ------------------------------------------------------------------------
+
+SurfaceProbe::SurfaceProbe(std::shared_ptr<const Surface> surface, double length,
+                           bool unilateral)
+    : Mechanism("SurfaceProbe", probe_kinds(unilateral ? 3 : 2),
+                surface_limit(checked_surface(surface), unilateral, false),
+                surface_limit(*surface, unilateral, true), surface_home(*surface, unilateral),
+                positive_length("length", length)),
+      surface_(std::move(surface)), length_(length), unilateral_(unilateral) {
+  if (unilateral) set_contact_joint(2);
+}
+
+void SurfaceProbe::forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept {
+  const int wrist = unilateral_ ? 3 : 2;
+  const double h = unilateral_ ? x[2] : 0.0;
+  SurfaceDerivatives d;
+  surface_->derivatives(x[0], x[1], 2, d);
+  SurfaceFrame f;
+  surface_frame(*surface_, x[0], x[1], d, f);
+  const Eigen::Vector3d n = f.B.col(2);
+  const Eigen::Vector3d tip = d(0, 0) + h * n;
+  J.resize(6, wrist + 3);
+  probe_wrist(f.B, tip, x + wrist, length_, wrist, T, J);
+  // sliding the tip turns the wrist's base with the surface frame
+  const Eigen::Vector3d arm = T.translation() - tip;
+  J.col(0) << d(1, 0) + h * f.n_u + f.w_u.cross(arm), f.w_u;
+  J.col(1) << d(0, 1) + h * f.n_v + f.w_v.cross(arm), f.w_v;
+  if (unilateral_) J.col(2) << n, 0.0, 0.0, 0.0;
+}
+
+void SurfaceProbe::seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept {
+  const Eigen::Vector3d tip = tip_of(target, length_);
+  Eigen::Vector3d point;
+  const Eigen::Vector2d uv = surface_->closest_point(tip, point);
+  theta[0] = uv[0];
+  theta[1] = uv[1];
+  SurfaceDerivatives d;
+  surface_->derivatives(uv[0], uv[1], 2, d);
+  SurfaceFrame f;
+  surface_frame(*surface_, uv[0], uv[1], d, f);
+  const int wrist = unilateral_ ? 3 : 2;
+  if (unilateral_) theta[2] = std::max(0.0, f.B.col(2).dot(tip - point));
+  theta.segment<3>(wrist) =
+      wrist_angles(f.B, target.linear(), Eigen::Vector3d(theta.segment<3>(wrist)));
+  tilt_if_positions_only(w, length_, theta, wrist);
+}
+
+// --- CurveGuide --------------------------------------------------------------------------
+
+CurveGuide::CurveGuide(std::shared_ptr<const Curve> curve, double length,
+                       const Eigen::Vector3d& normal)
+    : Mechanism("CurveGuide", probe_kinds(1), curve_limit(checked_curve(curve), false),
+                curve_limit(*curve, true), curve_home(*curve), positive_length("length", length)),
+      curve_(std::move(curve)), length_(length), normal_(require_unit("normal", normal)),
+      base_(fixed_base(normal_)) {}
+
+void CurveGuide::forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept {
+  CurveDerivatives d;
+  curve_->derivatives(x[0], 1, d);
+  J.resize(6, 4);
+  probe_wrist(base_, d.col(0), x + 1, length_, 1, T, J);
+  J.col(0) << d.col(1), 0.0, 0.0, 0.0;
+}
+
+void CurveGuide::seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept {
+  Eigen::Vector3d point;
+  theta[0] = curve_->closest_point(tip_of(target, length_), point);
+  theta.segment<3>(1) =
+      wrist_angles(base_, target.linear(), Eigen::Vector3d(theta.segment<3>(1)));
+  tilt_if_positions_only(w, length_, theta, 1);
+}
+
+// --- HandlePath --------------------------------------------------------------------------
+
+HandlePath::HandlePath(std::shared_ptr<const Curve> curve, const Eigen::Vector3d& normal,
+                       double length_scale)
+    : Mechanism("HandlePath", probe_kinds(1), curve_limit(checked_curve(curve), false),
+                curve_limit(*curve, true), curve_home(*curve),
+                positive_length("length_scale", length_scale)),
+      curve_(std::move(curve)), normal_(require_unit("normal", normal)),
+      base_(fixed_base(normal_)) {}
+
+void HandlePath::forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept {
+  CurveDerivatives d;
+  curve_->derivatives(x[0], 1, d);
+  J.resize(6, 4);
+  // the probe's wrist with its tip at the handle (zero length): rotations about the handle
+  probe_wrist(base_, d.col(0), x + 1, 0.0, 1, T, J);
+  J.col(0) << d.col(1), 0.0, 0.0, 0.0;
+}
+
+void HandlePath::seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept {
+  (void)w;
+  Eigen::Vector3d point;
+  theta[0] = curve_->closest_point(target.translation(), point);
+  theta.segment<3>(1) =
+      wrist_angles(base_, target.linear(), Eigen::Vector3d(theta.segment<3>(1)));
+}
+
+}  // namespace virtmech
