@@ -12,7 +12,6 @@ import pytest
 from scipy.optimize import minimize
 
 import virtmech as vm
-
 from conftest import numeric_jacobian
 
 KP = vm.PhantomOmni().stiffness  # [N/m] the default translational stiffness
@@ -47,7 +46,7 @@ def rotation_taking(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return vm.so3_exp(v / s * np.arctan2(s, c))
 
 
-def patch(R=np.eye(3), t=np.zeros(3)) -> vm.NurbsSurface:
+def patch(R=None, t=None) -> vm.NurbsSurface:
     """A rational bicubic patch about 12 cm x 9 cm, curved in both directions (a bump and a
     saddle), rigidly moved by (R, t) (NURBS are invariant under rigid motions)."""
     nu, nv = 5, 4
@@ -57,11 +56,12 @@ def patch(R=np.eye(3), t=np.zeros(3)) -> vm.NurbsSurface:
             x, y = 0.03 * i - 0.06, 0.03 * j - 0.045
             P[i, j] = [x, y, 0.012 * np.cos(2.0 * x / 0.06) * np.cos(y / 0.045) + 0.2 * x * y]
     W = 1.0 + 0.25 * np.add.outer(np.sin(np.arange(nu)), np.cos(np.arange(nv))) ** 2
-    P = P @ R.T + t
+    R = np.eye(3) if R is None else R
+    P = P @ R.T + (0.0 if t is None else t)
     return vm.NurbsSurface(P, W, [0, 0, 0, 0, 0.5, 1, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1], 3, 3)
 
 
-def letter_curve(R=np.eye(3), t=np.zeros(3)) -> vm.NurbsCurve:
+def letter_curve(R=None, t=None) -> vm.NurbsCurve:
     """A rational cubic 'S' about 8 cm tall in the local xy-plane, rigidly moved."""
     P = np.array(
         [[0.03, 0.04, 0], [-0.01, 0.045, 0], [-0.03, 0.02, 0], [0.0, 0.0, 0.005],
@@ -69,7 +69,8 @@ def letter_curve(R=np.eye(3), t=np.zeros(3)) -> vm.NurbsCurve:
     )
     w = np.array([1.0, 1.3, 0.8, 1.0, 1.2, 0.9, 1.0])
     knots = [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1]
-    return vm.NurbsCurve(P @ R.T + t, w, knots, 3)
+    R = np.eye(3) if R is None else R
+    return vm.NurbsCurve(P @ R.T + (0.0 if t is None else t), w, knots, 3)
 
 
 def handle_at(tip: np.ndarray, stylus: np.ndarray, length: float = L) -> np.ndarray:
@@ -109,7 +110,7 @@ def test_surface_probe_jacobian_is_the_derivative_of_its_pose(name, unilateral, 
 
 def test_surface_probe_pose_is_the_tip_on_the_surface_with_the_stylus_over_it(rng):
     """At wrist angles 0 the tip is S(u, v) (+ h n), the stylus along -n, the handle L back."""
-    for name, s in shapes().items():
+    for s in shapes().values():
         for unilateral in (False, True):
             m = vm.SurfaceProbe(s, L, unilateral=unilateral)
             x = np.array(m.home, dtype=float)
