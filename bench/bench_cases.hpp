@@ -19,8 +19,9 @@ using namespace virtmech;
 /// q_i(t) = center_i + amplitude_i sin(w_i t + i), w_i = 1 + 0.37 i [rad/s].
 struct BenchCase {
   std::string name;
-  std::unique_ptr<Controller> controller;
+  std::unique_ptr<Controller> controller;  // the case's controller; or, for a set, member 0
   JointVector center, amplitude;
+  std::unique_ptr<MechanismSet> set;  // a MechanismSet case: the set is what steps
 };
 
 /// Device joint state at cycle k (t = k * period_s).
@@ -53,8 +54,16 @@ inline JointVector values(std::initializer_list<double> v) {
   return out;
 }
 
-/// The cases (four device-mechanism pairs and one stress case), in the order the reports
-/// list them.
+/// The Omni's frame turned so that a shape made in the local xy-plane lies horizontal,
+/// its local +z up (the Omni's +y): local (x, y, z) -> world (x, z, -y).
+inline Eigen::Matrix3d omni_horizontal() {
+  Eigen::Matrix3d R;
+  R << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  return R;
+}
+
+/// The cases (four device-mechanism pairs and one stress case, then the mechanisms on a
+/// geometry, C++ only), in the order the reports list them.
 inline std::vector<BenchCase> make_cases() {
   std::vector<BenchCase> cases;
   auto omni = std::make_shared<PhantomOmni>();
@@ -93,6 +102,28 @@ inline std::vector<BenchCase> make_cases() {
                    omni_center, omni_amplitude});
   cases.push_back({"arm6+serial5", std::make_unique<Controller>(vmtest::six_dof_arm(), serial5()),
                    JointVector::Constant(6, 0.3), JointVector::Constant(6, 0.4)});
+  // a probe on a NURBS patch under the wandering tip (bump +-1.2 cm about y = 0): the tip
+  // passes 5 cm below to 3 cm above it
+  const Eigen::Matrix3d H = omni_horizontal();
+  const auto patch = vmtest::test_patch(Eigen::Vector3d(0.0, 0.0, -0.02), H);
+  cases.push_back({"omni+surface_probe",
+                   std::make_unique<Controller>(omni, std::make_shared<SurfaceProbe>(patch, 0.1)),
+                   omni_center, omni_amplitude});
+  // four members: the patch (unilateral), a table 3 cm below, two letter paths
+  MechanismSetSettings ss;
+  ss.snap_distance = 0.005;
+  ss.release_distance = 0.01;
+  auto set = std::make_unique<MechanismSet>(omni, 4, ss);
+  set->add(std::make_shared<SurfaceProbe>(patch, 0.1, true));
+  set->add(std::make_shared<Probe>(Eigen::Vector3d(0.0, -0.03, 0.0), Eigen::Vector3d::UnitY(),
+                                   0.1, Eigen::Vector3d::Zero(), true));
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitY();
+  set->add(std::make_shared<CurveGuide>(vmtest::test_letter(Eigen::Vector3d(0, 0.01, -0.02), H),
+                                        0.1, up));
+  set->add(std::make_shared<CurveGuide>(
+      vmtest::test_letter(Eigen::Vector3d(0.03, -0.01, -0.03), H), 0.1, up));
+  auto member0 = std::make_unique<Controller>(set->member(0));
+  cases.push_back({"omni+set4", std::move(member0), omni_center, omni_amplitude, std::move(set)});
   return cases;
 }
 

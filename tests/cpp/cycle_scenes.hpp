@@ -29,39 +29,6 @@ inline std::vector<std::string> scene_names() {
           "Arm6RHandlePath"};
 }
 
-/// A rational bicubic patch 12 cm x 9 cm under the Omni's handle (a bump and a saddle).
-inline std::shared_ptr<const NurbsSurface> test_patch(const Eigen::Vector3d& origin) {
-  const int nu = 5, nv = 4;
-  Eigen::MatrixX3d P(nu * nv, 3);
-  Eigen::MatrixXd W(nu, nv);
-  for (int i = 0; i < nu; ++i) {
-    for (int j = 0; j < nv; ++j) {
-      const double x = 0.03 * i - 0.06, y = 0.03 * j - 0.045;
-      P.row(i * nv + j) =
-          (origin + Eigen::Vector3d(x, y, 0.012 * std::cos(2.0 * x / 0.06) * std::cos(y / 0.045) +
-                                               0.2 * x * y))
-              .transpose();
-      W(i, j) = 1.0 + 0.1 * ((i + j) % 3);
-    }
-  }
-  Eigen::VectorXd ku(9), kv(8);
-  ku << 0, 0, 0, 0, 0.5, 1, 1, 1, 1;
-  kv << 0, 0, 0, 0, 1, 1, 1, 1;
-  return std::make_shared<NurbsSurface>(P, W, ku, kv, 3, 3);
-}
-
-/// A rational cubic 'S' about 8 cm tall in a plane z = const, moved by `origin`.
-inline std::shared_ptr<const NurbsCurve> test_letter(const Eigen::Vector3d& origin) {
-  Eigen::MatrixX3d P(7, 3);
-  P << 0.03, 0.04, 0, -0.01, 0.045, 0, -0.03, 0.02, 0, 0.0, 0.0, 0.005, 0.03, -0.02, 0, 0.01,
-      -0.045, 0, -0.03, -0.04, 0;
-  P.rowwise() += origin.transpose();
-  Eigen::VectorXd w(7), knots(11);
-  w << 1.0, 1.3, 0.8, 1.0, 1.2, 0.9, 1.0;
-  knots << 0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1;
-  return std::make_shared<NurbsCurve>(P, w, knots, 3);
-}
-
 inline Scene make_scene(const std::string& name) {
   const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY(),
                         z = Eigen::Vector3d::UnitZ(), zero = Eigen::Vector3d::Zero();

@@ -95,4 +95,40 @@ inline JointVector planar3r_ik(double l1, double l2, double x, double y, double 
   return q;
 }
 
+/// A rational bicubic patch 12 cm x 9 cm (a bump and a saddle) in the local xy-plane, its
+/// normal local +z, turned by R and moved to `origin`.
+inline std::shared_ptr<const NurbsSurface> test_patch(
+    const Eigen::Vector3d& origin, const Eigen::Matrix3d& R = Eigen::Matrix3d::Identity()) {
+  const int nu = 5, nv = 4;
+  Eigen::MatrixX3d P(nu * nv, 3);
+  Eigen::MatrixXd W(nu, nv);
+  for (int i = 0; i < nu; ++i) {
+    for (int j = 0; j < nv; ++j) {
+      const double x = 0.03 * i - 0.06, y = 0.03 * j - 0.045;
+      const Eigen::Vector3d local(
+          x, y, 0.012 * std::cos(2.0 * x / 0.06) * std::cos(y / 0.045) + 0.2 * x * y);
+      P.row(i * nv + j) = (origin + R * local).transpose();
+      W(i, j) = 1.0 + 0.1 * ((i + j) % 3);
+    }
+  }
+  Eigen::VectorXd ku(9), kv(8);
+  ku << 0, 0, 0, 0, 0.5, 1, 1, 1, 1;
+  kv << 0, 0, 0, 0, 1, 1, 1, 1;
+  return std::make_shared<NurbsSurface>(P, W, ku, kv, 3, 3);
+}
+
+/// A rational cubic 'S' about 8 cm tall in the local xy-plane, turned by R and moved to
+/// `origin`.
+inline std::shared_ptr<const NurbsCurve> test_letter(
+    const Eigen::Vector3d& origin, const Eigen::Matrix3d& R = Eigen::Matrix3d::Identity()) {
+  Eigen::MatrixX3d P(7, 3);
+  P << 0.03, 0.04, 0, -0.01, 0.045, 0, -0.03, 0.02, 0, 0.0, 0.0, 0.005, 0.03, -0.02, 0, 0.01,
+      -0.045, 0, -0.03, -0.04, 0;
+  P = (P * R.transpose()).rowwise() + origin.transpose();
+  Eigen::VectorXd w(7), knots(11);
+  w << 1.0, 1.3, 0.8, 1.0, 1.2, 0.9, 1.0;
+  knots << 0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1;
+  return std::make_shared<NurbsCurve>(P, w, knots, 3);
+}
+
 }  // namespace vmtest
