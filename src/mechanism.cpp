@@ -350,6 +350,7 @@ void place_on_tip_set(const detail::TipSet& set, double length, const Eigen::Mat
 
 bool PointPivot::place(const Pose& target, const Vector6& w, const JointVector& start,
                        JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
+  if (insertion_) return false;
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   // the tip at the point, or on the half-line point + lambda normal, lambda >= 0
@@ -392,25 +393,39 @@ bool LineGuide::place(const Pose& target, const Vector6& w, const JointVector& s
   return true;
 }
 
-static std::vector<Joint> pivot_joints(bool unilateral) {
+static std::vector<Joint> pivot_joints(bool unilateral, bool insertion, double length) {
   std::vector<Joint> joints;
   if (unilateral) joints.push_back(lift_off());
   for (const Joint& j : wrist_rrr()) joints.push_back(j);
+  if (insertion) {
+    // along the stylus (the tip frame's z, toward the handle): the handle at length + s
+    Joint s = make_joint(JointType::kPrismatic, Eigen::Vector3d::UnitZ());
+    s.lower = -0.9 * length;
+    s.upper = 0.0;
+    joints.push_back(s);
+  }
   return joints;
 }
 
+static JointVector pivot_home(bool unilateral, bool insertion, double length) {
+  JointVector h = JointVector::Zero((unilateral ? 4 : 3) + (insertion ? 1 : 0));
+  if (insertion) h[h.size() - 1] = -length / 3.0;
+  return h;
+}
+
 PointPivot::PointPivot(const Eigen::Vector3d& point, const Eigen::Vector3d& normal,
-                       double length, const Eigen::Vector3d& tangent, bool unilateral)
+                       double length, const Eigen::Vector3d& tangent, bool unilateral,
+                       bool insertion)
     : ChainMechanism("PointPivot",
                      KinematicChain(tangent_frame(point, require_unit("normal", normal),
                                                   tangent_or_default("tangent", tangent,
                                                                      normal.normalized())),
-                                    pivot_joints(unilateral),
-                                    handle_behind_tip(checked_length(length))),
-                     length, JointVector::Zero(unilateral ? 4 : 3)),
+                                    pivot_joints(unilateral, insertion, checked_length(length)),
+                                    handle_behind_tip(length)),
+                     length, pivot_home(unilateral, insertion, length)),
       point_(point), normal_(normal.normalized()),
       tangent_(tangent_or_default("tangent", tangent, normal.normalized())), length_(length),
-      unilateral_(unilateral) {
+      unilateral_(unilateral), insertion_(insertion) {
   require_finite("point", point);
   if (unilateral) set_contact_joint(0);
 }

@@ -157,17 +157,24 @@ class Probe final : public ChainMechanism {
 /// A probe whose tip is pinned at `point` (RRR about the tip, as in Probe). At theta = 0 the
 /// stylus points along -normal. `unilateral`: the tip may lift off toward +normal (a
 /// prismatic joint along the normal with lower limit 0 before the RRR).
+///
+/// `insertion`: a trocar (a remote centre of motion): the stylus passes through `point` and
+/// slides along itself, a prismatic joint s after the RRR, the handle at length + s from the
+/// point along the stylus, s in [-0.9 length, 0] (0: the tool's tip at the point; the tip
+/// may go in through it up to 0.9 length, never out). home s = -length / 3.
 class PointPivot final : public ChainMechanism {
  public:
   PointPivot(const Eigen::Vector3d& point, const Eigen::Vector3d& normal, double length,
-             const Eigen::Vector3d& tangent, bool unilateral = false);
+             const Eigen::Vector3d& tangent, bool unilateral = false, bool insertion = false);
   const Eigen::Vector3d& point() const noexcept { return point_; }
   const Eigen::Vector3d& normal() const noexcept { return normal_; }
   const Eigen::Vector3d& tangent() const noexcept { return tangent_; }
   double length() const noexcept { return length_; }
   bool unilateral() const noexcept { return unilateral_; }
+  bool insertion() const noexcept { return insertion_; }
   /// Closed form for weights isotropic within position and within rotation (bilateral: one
-  /// scalar solve; unilateral: one solve in the stylus's two tilt angles).
+  /// scalar solve; unilateral: one solve in the stylus's two tilt angles). None with
+  /// insertion (the Gauss-Newton placement).
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
@@ -175,6 +182,7 @@ class PointPivot final : public ChainMechanism {
   Eigen::Vector3d point_, normal_, tangent_;
   double length_;
   bool unilateral_;
+  bool insertion_;
 };
 
 /// A probe whose tip slides on the line through `point` along the unit `direction`

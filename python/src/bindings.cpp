@@ -550,17 +550,22 @@ NB_MODULE(_core, m) {
       .def(
           "__init__",
           [](PointPivot* self, nb::handle p, nb::handle n, nb::handle length, nb::handle t,
-             bool unilateral) {
+             bool unilateral, bool insertion) {
             new (self) PointPivot(to_vec3("point", p), to_vec3("normal", n),
-                                  to_double("length", length), opt_vec3("tangent", t), unilateral);
+                                  to_double("length", length), opt_vec3("tangent", t), unilateral,
+                                  insertion);
           },
           "point"_a, "normal"_a = nb::make_tuple(0.0, 0.0, 1.0), "length"_a = 0.1,
-          "tangent"_a = nb::none(), "unilateral"_a = false,
-          "unilateral=True: the tip may lift off toward +normal (a joint with lower limit 0).")
+          "tangent"_a = nb::none(), "unilateral"_a = false, "insertion"_a = false,
+          "unilateral=True: the tip may lift off toward +normal (a joint with lower limit 0). "
+          "insertion=True: a trocar: the stylus passes through the point and slides along "
+          "itself (a last joint s in [-0.9 length, 0], the handle at length + s from the "
+          "point).")
       .def_prop_ro("point", &PointPivot::point)
       .def_prop_ro("normal", &PointPivot::normal)
       .def_prop_ro("length", &PointPivot::length)
       .def_prop_ro("unilateral", &PointPivot::unilateral)
+      .def_prop_ro("insertion", &PointPivot::insertion)
       .def("to_dict", [](const PointPivot& a) {
         nb::dict d;
         d["type"] = "PointPivot";
@@ -569,6 +574,7 @@ NB_MODULE(_core, m) {
         d["length"] = a.length();
         d["tangent"] = to_list(a.tangent());
         d["unilateral"] = a.unilateral();
+        d["insertion"] = a.insertion();
         return d;
       });
 

@@ -120,6 +120,60 @@ UNILATERAL = Field(
     doc="the tip may lift off toward +normal: the surface pushes but never pulls",
 )
 
+#: a surface or curve of a mechanism (docs/geometry.md); NURBS weights default to ones, knots
+#: to the clamped uniform vector of the degree
+_NURBS_POINT = Field("vector", length=3, doc="3 numbers [m]")
+SURFACE = Field(
+    "table",
+    required=True,
+    variant_key="type",
+    variants={
+        "NurbsSurface": {
+            "control_points": Field(
+                "vector",
+                required=True,
+                element=Field("vector", element=_NURBS_POINT),
+                doc="nu rows of nv points of 3 numbers [m]",
+            ),
+            "weights": Field("vector", element=Field("vector"), doc="nu rows of nv numbers > 0"),
+            "knots_u": Field("vector", doc="nu + degree_u + 1 numbers (default clamped uniform)"),
+            "knots_v": Field("vector", doc="nv + degree_v + 1 numbers (default clamped uniform)"),
+            "degree_u": Field("integer", default=3, min=1, max=7),
+            "degree_v": Field("integer", default=3, min=1, max=7),
+        },
+        "Sphere": {
+            "center": vec(3, required=True, doc="3 numbers [m]"),
+            "radius": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
+            "axis": direction([0.0, 0.0, 1.0], doc="the poles' direction (keep them unused)"),
+        },
+        "Cylinder": {
+            "point": vec(3, required=True, doc="3 numbers [m]"),
+            "direction": direction(required=True),
+            "radius": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
+        },
+        "Plane": {
+            "point": vec(3, required=True, doc="3 numbers [m]"),
+            "normal": direction(required=True),
+        },
+    },
+)
+
+CURVE = Field(
+    "table",
+    required=True,
+    variant_key="type",
+    variants={
+        "NurbsCurve": {
+            "control_points": Field(
+                "vector", required=True, element=_NURBS_POINT, doc="n points of 3 numbers [m]"
+            ),
+            "weights": Field("vector", doc="n numbers > 0 (default ones)"),
+            "knots": Field("vector", doc="n + degree + 1 numbers (default clamped uniform)"),
+            "degree": Field("integer", default=3, min=1, max=7),
+        },
+    },
+)
+
 MECHANISM = Field(
     "table",
     required=True,
@@ -137,6 +191,11 @@ MECHANISM = Field(
             "length": num(0.1, min=0, min_exclusive=True, max=10),
             "tangent": direction(),
             "unilateral": UNILATERAL,
+            "insertion": Field(
+                "bool",
+                default=False,
+                doc="a trocar: the stylus passes through the point and slides along itself",
+            ),
         },
         "Probe": {
             "plane_point": vec(3, required=True, doc="3 numbers [m]"),
@@ -151,6 +210,21 @@ MECHANISM = Field(
             "length": num(0.1, min=0, min_exclusive=True, max=10),
             "normal": direction(),
             "unilateral": UNILATERAL,
+        },
+        "SurfaceProbe": {
+            "surface": SURFACE,
+            "length": num(0.1, min=0, min_exclusive=True, max=10),
+            "unilateral": UNILATERAL,
+        },
+        "CurveGuide": {
+            "curve": CURVE,
+            "length": num(0.1, min=0, min_exclusive=True, max=10),
+            "normal": direction([0.0, 0.0, 1.0], doc="the side the hand is on"),
+        },
+        "HandlePath": {
+            "curve": CURVE,
+            "normal": direction([0.0, 0.0, 1.0]),
+            "length_scale": num(0.1, min=0, min_exclusive=True, max=10),
         },
     },
 )

@@ -95,7 +95,17 @@ def probe(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
 
 
 def point_pivot(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
-    """The tip from the point (unilateral: from the ray above it along the normal)."""
+    """The tip from the point (unilateral: from the ray above it along the normal). With
+    insertion (a trocar): the point's distance from the stylus's line (dist, dist_signed,
+    dist_across) and how far the tip has gone in past the point along the stylus
+    (dist_normal)."""
+    if m.get("insertion"):
+        s = np.asarray(s, dtype=float)
+        w = np.asarray(m["point"], dtype=float) - np.asarray(p, dtype=float)
+        along = np.sum(w * s, axis=1)
+        line = np.linalg.norm(w - along[:, None] * s, axis=1)
+        depth = float(m["length"]) - along  # tip beyond the point along the stylus
+        return Distances(line, line, depth, line)
     n = _unit(m["normal"])
     w = tip(m, p, s) - np.asarray(m["point"], dtype=float)
     h = w @ n
@@ -110,6 +120,55 @@ def line_guide(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
     n = _unit(n - (n @ d) * d)
     w = tip(m, p, s) - np.asarray(m["point"], dtype=float)
     return _one_sided(w @ n, w @ np.cross(n, d), bool(m.get("unilateral")))
+
+
+def _closest_points(shape, X: np.ndarray):
+    """Parameters and points of `shape` closest to each row of X (the shape's own search)."""
+    params, points = [], []
+    for x in np.atleast_2d(X):
+        par, pt = shape.closest_point(x)
+        params.append(par)
+        points.append(pt)
+    return np.asarray(params, dtype=float), np.asarray(points, dtype=float).reshape(-1, 3)
+
+
+def surface_probe(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
+    """The tip's signed height above the surface along the normal at its closest point
+    (negative: behind it)."""
+    from ..shapes import shape_from_dict
+
+    surface = shape_from_dict(m["surface"])
+    X = tip(m, p, s)
+    uv, points = _closest_points(surface, X)
+    normals = np.array([surface.normal(u, v) for u, v in uv]).reshape(-1, 3)
+    h = np.sum((X - points) * normals, axis=1)
+    dist = np.maximum(-h, 0.0) if m.get("unilateral") else np.abs(h)
+    return Distances(dist, h, h, np.zeros_like(h))
+
+
+def _from_curve(m: dict, X: np.ndarray) -> Distances:
+    """A point from the curve: the distance, its part along the mechanism's normal and the
+    rest."""
+    from ..shapes import shape_from_dict
+
+    _, points = _closest_points(shape_from_dict(m["curve"]), X)
+    w = X - points
+    n = _unit(m.get("normal", [0.0, 0.0, 1.0]))
+    h = w @ n
+    full = np.linalg.norm(w, axis=1)
+    across = np.sqrt(np.maximum(full**2 - h**2, 0.0))
+    return Distances(full, full, h, across)
+
+
+def curve_guide(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
+    """The tip from the curve."""
+    return _from_curve(m, tip(m, p, s))
+
+
+def handle_path(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
+    """The handle from the curve."""
+    del s
+    return _from_curve(m, np.asarray(p, dtype=float))
 
 
 #: mechanism type -> its geometry (SerialChain and other chains have none: the log then
@@ -138,6 +197,19 @@ GEOMETRY: dict[str, Geometry] = {
         "the line",
         "tip distance from the line",
         "the tip is below the line along its normal",
+    ),
+    "SurfaceProbe": Geometry(
+        surface_probe,
+        "tip",
+        "the surface",
+        "tip height above the surface",
+        "the tip is behind the surface",
+    ),
+    "CurveGuide": Geometry(
+        curve_guide, "tip", "the curve", "tip distance from the curve", "(never: unsigned)"
+    ),
+    "HandlePath": Geometry(
+        handle_path, "handle", "the curve", "handle distance from the curve", "(never: unsigned)"
     ),
 }
 

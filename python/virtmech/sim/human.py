@@ -313,7 +313,10 @@ class Intent:
         for key in ("normal", "plane_normal"):
             if key in d:
                 return np.asarray(d[key], dtype=float)
-        return np.asarray(self.mechanism.joints[0].axis, dtype=float)
+        if hasattr(self.mechanism, "joints"):  # a serial chain: its first joint's axis
+            return np.asarray(self.mechanism.joints[0].axis, dtype=float)
+        # a mechanism on a shape: the side the hand is on at its home (against the stylus)
+        return -np.asarray(self.mechanism.forward(self.mechanism.home), dtype=float)[:3, 2]
 
     def _axis(self, seg: dict, T_handle: np.ndarray) -> np.ndarray:
         a = seg.get("axis", "normal")

@@ -41,6 +41,7 @@ from .model import (
     compile_model,
     world_gravity,
 )
+from ..shapes import shape_from_dict
 from .sensors import Sensors, SensorSettings
 
 # ---------------------------------------------------------------------------------------
@@ -130,7 +131,8 @@ def make_mechanism(m: dict):
         return vm.PlanarArm(m["pivot"], m["normal"], m["length"], m.get("zero_direction"))
     if t == "PointPivot":
         return vm.PointPivot(
-            m["point"], m["normal"], m["length"], m.get("tangent"), unilateral=m["unilateral"]
+            m["point"], m["normal"], m["length"], m.get("tangent"), unilateral=m["unilateral"],
+            insertion=m.get("insertion", False),
         )
     if t == "Probe":
         return vm.Probe(
@@ -144,6 +146,12 @@ def make_mechanism(m: dict):
         return vm.LineGuide(
             m["point"], m["direction"], m["length"], m.get("normal"), unilateral=m["unilateral"]
         )
+    if t == "SurfaceProbe":
+        return vm.SurfaceProbe(shape_from_dict(m["surface"]), m["length"], m["unilateral"])
+    if t == "CurveGuide":
+        return vm.CurveGuide(shape_from_dict(m["curve"]), m["length"], m["normal"])
+    if t == "HandlePath":
+        return vm.HandlePath(shape_from_dict(m["curve"]), m["normal"], m["length_scale"])
     raise ValueError(f"mechanism.type: unknown {t!r}")
 
 
