@@ -67,9 +67,21 @@ def serve(
     import sys
     import threading
 
-    from .server import ViewServer
+    from ..errors import UserError
+    from .server import ViewServer, check_port
 
     source = resolve(source)
+    state = port + 1 if state_port is None else state_port
+    if state == port:
+        raise UserError(f"--state-port {state}: the same as --port; expected another port")
+    check_port(host, port)  # before anything is built
+    check_port(
+        host,
+        state,
+        f"--state-port {state}"
+        if state_port is not None
+        else f"--port {port} (the state endpoint listens on --port + 1 = {state})",
+    )
     viewer = ViewServer(
         source,
         port=port,
@@ -83,9 +95,11 @@ def serve(
     def interrupt(signum, frame):
         raise KeyboardInterrupt
 
+    handlers = {}
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, interrupt)
-        signal.signal(signal.SIGINT, interrupt)  # also where the shell ignored it
+        # Ctrl-C (also where the shell started us ignoring it) and SIGTERM end the viewer
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            handlers[sig] = signal.signal(sig, interrupt)
     try:
         viewer.start()
         print(
@@ -105,5 +119,7 @@ def serve(
             viewer.stop()
         except KeyboardInterrupt:  # a second Ctrl-C while stopping
             pass
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)
     print("virtmech view: stopped", file=sys.stderr, flush=True)
     return 0

@@ -167,9 +167,9 @@ class Scene:
                 "/forces",
                 np.zeros((3, 2, 3)),
                 np.array([FORCE_RGB, NULL_RGB, RANGE_RGB], dtype=np.uint8),
-                shaft_radius=0.0009,
-                head_radius=0.0025,
-                head_length=0.005,
+                shaft_radius=0.0014,
+                head_radius=0.0035,
+                head_length=0.007,
             )
         )
         self.target_dot = self._add(

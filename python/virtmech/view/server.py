@@ -35,18 +35,19 @@ FOV = math.radians(45.0)
 SPEEDS = ("0.1", "0.25", "0.5", "1", "2", "4")
 
 
-def check_port(host: str, port: int, flag: str = "--port") -> None:
-    """A UserError naming the flag unless `port` can be bound on `host` now."""
+def check_port(host: str, port: int, label: str | None = None) -> None:
+    """A UserError starting with `label` (default "--port PORT") unless `port` can be
+    bound on `host` now."""
+    label = label or f"--port {port}"
     if not 1 <= port <= 65535:
-        raise UserError(f"{flag} {port}: expected a port number 1 to 65535")
+        raise UserError(f"{label}: expected a port number 1 to 65535")
     try:
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
             s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             s.bind((host, port))
     except OSError as e:
         raise UserError(
-            f"{flag} {port}: cannot listen on {host}:{port} ({e.strerror or e}); expected a "
-            "free port"
+            f"{label}: cannot listen on {host}:{port} ({e.strerror or e}); expected a free port"
         ) from None
 
 
@@ -143,17 +144,16 @@ class ViewServer:
     def start(self) -> ViewServer:
         import viser
 
-        check_port(self.host, self.port, "--port")
-        check_port(self.host, self.state_port, "--state-port")
+        check_port(self.host, self.port)
+        check_port(self.host, self.state_port, f"--state-port {self.state_port}")
         with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: we print our own
             self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)
         if self.server.get_port() != self.port:  # viser moved to another port: taken meanwhile
             self.server.stop()
             self.server = None
             raise UserError(f"--port {self.port}: the port was taken; expected a free port")
-        self.server.gui.configure_theme(
-            control_layout="fixed", control_width="medium", show_share_button=False
-        )
+        self.server.gui.configure_theme(control_width="medium", show_share_button=False)
+        self.server.gui.main_panel.dock_right()  # beside the 3-D view, not over it
         # no shadows: they are most of the cost of a frame in a software-rendered browser
         self.server.scene.configure_default_lights(enabled=True, cast_shadow=False)
         # no environment map either (its filtering is slow there too): an ambient light
