@@ -586,9 +586,10 @@ class Pacer:
                 wall0, k_ref = time.perf_counter(), self.sim.k  # a new reference
                 self._window.clear()
             now = time.perf_counter()
-            if self.paused:
+            if self.paused:  # the real-time factor is measured again from the resumption
                 wall0, k_ref = now, self.sim.k
-                self._measure(now, busy)
+                self._window.clear()
+                self.rtf = self.load = 0.0
                 time.sleep(0.01)
                 continue
             due = k_ref + int((now - wall0) / T) - self.sim.k

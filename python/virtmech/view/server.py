@@ -127,6 +127,7 @@ class ViewServer:
         self._scene: Scene | None = None
         self._scene_sim = None  # the LiveSim the scene was built for
         self._guard = False  # True while the code sets GUI values (no callbacks)
+        self._pending_settings: Settings | None = None
         self._frame_times: list[float] = []
         self.frame_rate = 0.0
         self._last_frame: dict | None = None
@@ -441,9 +442,15 @@ class ViewServer:
                 delay_cycles=int(g["delay_cycles"].value),
             )
 
+            # a slider dragged sends many values: the simulation applies the latest once
+            self._pending_settings = new
+
             def apply(sim: LiveSim):
+                latest, self._pending_settings = self._pending_settings, None
+                if latest is None:
+                    return
                 try:
-                    sim.apply(new)
+                    sim.apply(latest)
                 except ValueError as e:
                     self._note(f"not applied: {e}")
                     self._refresh_settings_gui(sim)
