@@ -130,8 +130,10 @@ class ViewServer:
         self._pending_settings: Settings | None = None
         self._frame_times: list[float] = []
         self.frame_rate = 0.0
-        self._last_frame: dict | None = None
-        self._lock = threading.Lock()
+        self._gui: dict = {}
+        self._gizmo = None
+        self._R0 = np.eye(3)  # the handle's orientation when the gizmo was centred
+        self.camera: dict = {}
         # replay
         self.play_t = 0.0
         self.playing = False
@@ -146,25 +148,36 @@ class ViewServer:
         import viser
 
         check_port(self.host, self.port)
-        check_port(self.host, self.state_port, f"--state-port {self.state_port}")
-        with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: we print our own
-            self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)
-        if self.server.get_port() != self.port:  # viser moved to another port: taken meanwhile
-            self.server.stop()
-            self.server = None
-            raise UserError(f"--port {self.port}: the port was taken; expected a free port")
-        self.server.gui.configure_theme(control_width="medium", show_share_button=False)
-        self.server.gui.main_panel.dock_right()  # beside the 3-D view, not over it
-        # no shadows: they are most of the cost of a frame in a software-rendered browser
-        self.server.scene.configure_default_lights(enabled=True, cast_shadow=False)
-        # no environment map either (its filtering is slow there too): an ambient light
-        self.server.scene.configure_environment_map(hdri=None)
-        self.server.scene.add_light_ambient("/light/ambient", intensity=1.2)
-        self._build_gui()
-        self._build_scene()
         handler = type("Handler", (_StateHandler,), {"viewer": self})
-        self._http = ThreadingHTTPServer((self.host, self.state_port), handler)
+        try:
+            self._http = ThreadingHTTPServer((self.host, self.state_port), handler)
+        except OSError as e:
+            raise UserError(
+                f"--state-port {self.state_port}: cannot listen on {self.host}:"
+                f"{self.state_port} ({e.strerror or e}); expected a free port"
+            ) from None
         self._http.daemon_threads = True
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: we print ours
+                self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)
+            if self.server.get_port() != self.port:  # viser moved on: the port was taken
+                raise UserError(f"--port {self.port}: the port was taken; expected a free port")
+            self.server.gui.configure_theme(control_width="medium", show_share_button=False)
+            self.server.gui.main_panel.dock_right()  # beside the 3-D view, not over it
+            # no shadows: most of the cost of a frame in a software-rendered browser
+            self.server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+            # no environment map either (its filtering is slow there too): ambient light
+            self.server.scene.configure_environment_map(hdri=None)
+            self.server.scene.add_light_ambient("/light/ambient", intensity=1.2)
+            self._build_gui()
+            self._build_scene()
+        except BaseException:
+            self._http.server_close()
+            self._http = None
+            if self.server is not None:
+                self.server.stop()
+                self.server = None
+            raise
         threading.Thread(
             target=self._http.serve_forever, name="virtmech-view-state", daemon=True
         ).start()
@@ -185,6 +198,8 @@ class ViewServer:
         return f"http://{self.host}:{self.state_port}/state"
 
     def stop(self) -> None:
+        """Stops the simulation (a recording under way is written), the view, the state
+        endpoint and viser's server; a second call does nothing."""
         self._stop.set()
         if self.pacer is not None:
             self.pacer.stop()
@@ -193,11 +208,14 @@ class ViewServer:
                 rec.finish()
         if self._view_thread is not None:
             self._view_thread.join(timeout=5)
-        if self._http is not None:
-            self._http.shutdown()
-            self._http.server_close()
-        if self.server is not None:
-            self.server.stop()
+            self._view_thread = None
+        http, self._http = self._http, None
+        if http is not None:
+            http.shutdown()
+            http.server_close()
+        server, self.server = self.server, None
+        if server is not None:
+            server.stop()
 
     # -------------------------------------------------------------------------------------
     # state
@@ -319,10 +337,6 @@ class ViewServer:
 
     def _build_gui(self) -> None:
         gui = self.server.gui
-        self._gui: dict = {}
-        self._gizmo = None
-        self._R0 = np.eye(3)
-        self.camera: dict = {}
         self._gui["status"] = gui.add_markdown("starting ...")
         if self.mode == "live":
             self._build_live_gui()
