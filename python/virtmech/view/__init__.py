@@ -70,37 +70,38 @@ def serve(
     from ..errors import UserError
     from .server import ViewServer, check_port
 
-    source = resolve(source)
-    state = port + 1 if state_port is None else state_port
-    if state == port:
-        raise UserError(f"--state-port {state}: the same as --port; expected another port")
-    check_port(host, port)  # before anything is built
-    check_port(
-        host,
-        state,
-        f"--state-port {state}"
-        if state_port is not None
-        else f"--port {port} (the state endpoint listens on --port + 1 = {state})",
-    )
-    viewer = ViewServer(
-        source,
-        port=port,
-        host=host,
-        state_port=state_port,
-        fps=fps,
-        record_dir=record_dir,
-        seed=seed,
-    )
-
     def interrupt(signum, frame):
         raise KeyboardInterrupt
 
     handlers = {}
     if threading.current_thread() is threading.main_thread():
-        # Ctrl-C (also where the shell started us ignoring it) and SIGTERM end the viewer
+        # Ctrl-C (also where the shell started us ignoring it) and SIGTERM end the viewer,
+        # from the start on
         for sig in (signal.SIGINT, signal.SIGTERM):
             handlers[sig] = signal.signal(sig, interrupt)
+    viewer = None
     try:
+        source = resolve(source)
+        state = port + 1 if state_port is None else state_port
+        if state == port:
+            raise UserError(f"--state-port {state}: the same as --port; expected another port")
+        check_port(host, port)  # before anything is built
+        check_port(
+            host,
+            state,
+            f"--state-port {state}"
+            if state_port is not None
+            else f"--port {port} (the state endpoint listens on --port + 1 = {state})",
+        )
+        viewer = ViewServer(
+            source,
+            port=port,
+            host=host,
+            state_port=state_port,
+            fps=fps,
+            record_dir=record_dir,
+            seed=seed,
+        )
         viewer.start()
         print(
             f"virtmech view: {viewer.name} ({viewer.mode}) at {viewer.url} "
@@ -116,7 +117,8 @@ def serve(
         pass
     finally:
         try:
-            viewer.stop()
+            if viewer is not None:
+                viewer.stop()
         except KeyboardInterrupt:  # a second Ctrl-C while stopping
             pass
         for sig, handler in handlers.items():

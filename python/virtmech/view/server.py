@@ -215,7 +215,8 @@ class ViewServer:
             http.server_close()
         server, self.server = self.server, None
         if server is not None:
-            server.stop()
+            with contextlib.redirect_stdout(io.StringIO()):  # viser's "Server stopped"
+                server.stop()
 
     # -------------------------------------------------------------------------------------
     # state
