@@ -547,7 +547,9 @@ class Pacer:
         self.rtf = 0.0  # simulated / wall time over the last second
         self.load = 0.0  # the stepping's share of the wall time over the last second
         self.chunk_times: list[float] = []  # wall time of each stretch [s] (the last 2000)
-        self.error: BaseException | None = None
+        self.error: BaseException | None = None  # what ended the thread, if anything
+        #: called (in the stepping thread) with the exception of a `call` that failed
+        self.on_error = lambda e: None
         self._window: list[tuple[float, float, float]] = []  # (wall, sim, busy)
 
     def call(self, fn) -> None:
@@ -580,7 +582,11 @@ class Pacer:
             with self._calls_lock:
                 calls, self._calls = self._calls, []
             for fn in calls:
-                new = fn(self.sim)
+                try:
+                    new = fn(self.sim)
+                except Exception as e:  # a call that fails leaves the simulation running
+                    self.on_error(e)
+                    continue
                 if isinstance(new, LiveSim):
                     self.sim = new
                 wall0, k_ref = time.perf_counter(), self.sim.k  # a new reference

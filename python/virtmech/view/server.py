@@ -119,6 +119,7 @@ class ViewServer:
             self.mode = "live"
             sim = LiveSim(source, seed=seed)  # a ScenarioError (UserError) if it is wrong
             self.pacer = Pacer(sim)
+            self.pacer.on_error = lambda e: self._note(f"failed: {e}")
             self.name = sim.scenario.name
         self.server = None
         self._http: ThreadingHTTPServer | None = None
@@ -564,7 +565,16 @@ class ViewServer:
         if self.recording is None:
             folder = self.record_dir / f"{self.name}-{time.strftime('%Y%m%d-%H%M%S')}"
             self.recording = str(folder)
-            self.pacer.call(lambda sim: sim.start_recording(folder) and None)
+
+            def start(sim: LiveSim):
+                try:
+                    sim.start_recording(folder)
+                except OSError as e:
+                    self.recording = None
+                    self._gui["record"].label = "record"
+                    self._note(f"cannot record to {folder}: {e}")
+
+            self.pacer.call(start)
             self._gui["record"].label = "stop recording"
             self._note(f"recording to {folder}")
             return str(folder)
