@@ -13,6 +13,8 @@ command -v ninja >/dev/null 2>&1 || need+=(ninja-build)
 command -v g++ >/dev/null 2>&1 || need+=(g++)
 if [ "$extras" = "test" ]; then
   [ -f /usr/include/gtest/gtest.h ] || need+=(libgtest-dev)
+  # the viewer's browser test (tests/python/test_view.py) drives Debian's Chromium
+  [ -x /usr/bin/chromium ] || need+=(chromium)
 fi
 if [ "${VIRTMECH_SETUP_BENCHMARK:-0}" = "1" ]; then
   [ -f /usr/include/benchmark/benchmark.h ] || need+=(libbenchmark-dev)

@@ -12,6 +12,8 @@ virtmech sweep SCENARIO --grid KEY=V1,V2,... [--grid ...]   a grid of runs in pa
 virtmech scenarios                    the shipped scenarios
 virtmech schema                       the JSON Schema of the scenario format
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
+virtmech view [SCENARIO | LOG_DIR]    a live 3-D viewer in the browser, the mouse as the hand;
+             [--port P] [--open]      or a run's log played back (docs/viewer.md)
 
 A mistake in the input (a scenario, a flag, a path; virtmech.errors.UserError) is reported
 as one message on stderr, with exit status 2.
@@ -351,6 +353,28 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def cmd_view(args) -> int:
+    _require_sim("view")
+    try:
+        import viser  # noqa: F401
+    except ImportError:
+        raise UserError(
+            "virtmech view: the viewer needs the [view] extra (viser is not installed); "
+            "install it with: pip install 'virtmech[view]'"
+        ) from None
+    from .view import serve
+
+    return serve(
+        args.source,
+        port=args.port,
+        host=args.host,
+        state_port=args.state_port,
+        open_browser=args.open,
+        record_dir=args.record_dir,
+        seed=args.seed,
+    )
+
+
 def cmd_bench(argv: list[str]) -> int:
     from . import bench  # imported only when asked for
 
@@ -366,6 +390,18 @@ def _seed(text: str) -> int:
         ) from None
     if not 0 <= v <= SEED_MAX:
         raise argparse.ArgumentTypeError(f"expected an integer 0 to 2**63-1, got {text}")
+    return v
+
+
+def _port(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a port number 1 to 65534, got {text!r}"
+        ) from None
+    if not 1 <= v <= 65534:
+        raise argparse.ArgumentTypeError(f"expected a port number 1 to 65534, got {text}")
     return v
 
 
@@ -473,6 +509,42 @@ def build_parser() -> argparse.ArgumentParser:
         "--set", action="append", metavar="KEY=VALUE", help="set a scenario key (as run)"
     )
     qp.set_defaults(duration=None)
+    v = sub.add_parser(
+        "view",
+        help="a live 3-D viewer in the browser, the mouse as the hand; or a run's log played "
+        "back (docs/viewer.md)",
+    )
+    v.add_argument(
+        "source",
+        nargs="?",
+        default="omni-fig11",
+        metavar="SCENARIO | LOG_DIR",
+        help="a shipped scenario's name, a scenario file, or a folder written by `virtmech run` "
+        "to play back (default: omni-fig11)",
+    )
+    v.add_argument("--port", type=_port, default=8080, help="the page's port (default: 8080)")
+    v.add_argument(
+        "--state-port",
+        type=_port,
+        help="the port of GET /state, the viewer's state as JSON (default: --port + 1)",
+    )
+    v.add_argument(
+        "--host", default="127.0.0.1", help="the address to listen on (default: 127.0.0.1)"
+    )
+    v.add_argument("--open", action="store_true", help="open the page in a web browser")
+    v.add_argument(
+        "--no-browser",
+        action="store_true",
+        help="do not open a browser (the default; for scripts that say so)",
+    )
+    v.add_argument(
+        "--record-dir",
+        default="out/view",
+        help="where the record button writes its runs (default: out/view)",
+    )
+    v.add_argument(
+        "--seed", type=_seed, help="random seed of the sensor noise (default: the scenario's)"
+    )
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)
@@ -486,6 +558,7 @@ COMMANDS = {
     "schema": cmd_schema,
     "sweep": cmd_sweep,
     "quality": cmd_quality,
+    "view": cmd_view,
 }
 
 
