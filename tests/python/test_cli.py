@@ -332,7 +332,8 @@ def test_schema_prints_the_json_schema_of_the_format(capsys):
     assert props["duration_s"]["exclusiveMinimum"] == 0 and props["duration_s"]["maximum"] == 3600
     assert props["physics"]["properties"]["rate_hz"]["default"] == 4000.0
     mech = {v["properties"]["type"]["const"]: v for v in props["mechanism"]["oneOf"]}
-    assert set(mech) == {"PlanarArm", "PointPivot", "Probe", "LineGuide"}
+    assert set(mech) == {"PlanarArm", "PointPivot", "Probe", "LineGuide", "SurfaceProbe",
+                         "CurveGuide", "HandlePath"}
     assert "pivot" in mech["PlanarArm"]["required"]
     assert mech["PlanarArm"]["additionalProperties"] is False
 

@@ -8,7 +8,8 @@ import pytest
 import virtmech.scenarios as sc
 
 PAPER = [f"{d}-fig{n}" for d in ("omni", "planar3r") for n in (9, 10, 11, 12)]
-SHIPPED = [*PAPER, "omni-fig11-passive", "omni-contact", "arm7-contact"]
+SHAPES = ["omni-surface-nurbs", "omni-surface-sphere", "omni-letter", "omni-trocar"]
+SHIPPED = [*PAPER, "omni-fig11-passive", "omni-contact", "arm7-contact", *SHAPES]
 
 GOOD = """
 name = "t"

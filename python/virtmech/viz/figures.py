@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..sim.geometry import geometry_of
+
 
 def _plt():
     import matplotlib
@@ -151,6 +153,52 @@ def _view_line_guide(m: dict, P, tips) -> _View:
     return _View(d, n, "the line and its normal (seen across)", draw, [c])
 
 
+def _shape_of(m: dict):
+    from ..shapes import shape_from_dict
+
+    return shape_from_dict(m["surface"] if "surface" in m else m["curve"])
+
+
+def _surface_grid(surface, count: int = 24) -> np.ndarray:
+    """Points of a surface on a count x count grid of its parameters (count, count, 3); an
+    unbounded direction over +-0.1 (m for planes and cylinders)."""
+    lo, hi = np.asarray(surface.lower, float), np.asarray(surface.upper, float)
+    lo = np.where(np.isfinite(lo), lo, -0.1)
+    hi = np.where(np.isfinite(hi), hi, 0.1)
+    us, vs = np.linspace(lo[0], hi[0], count), np.linspace(lo[1], hi[1], count)
+    return np.array([[surface.evaluate(u, v) for v in vs] for u in us])
+
+
+def _view_surface_probe(m: dict, P, tips) -> _View:
+    surface = _shape_of(m)
+    # seen from the side, the normal where the run's tip was closest to the surface up
+    uv_, _ = surface.closest_point(np.median(tips, axis=0))
+    n = np.asarray(surface.normal(*uv_), dtype=float)
+    u = _spread_axis(tips, n, None)
+
+    def draw(ax, uv):
+        G = uv(_surface_grid(surface).reshape(-1, 3))
+        ax.plot(G[:, 0], G[:, 1], ls="none", marker=".", ms=1.5, color="0.6",
+                label="the surface (its points, seen from the side)")
+
+    return _View(u, n, "the surface seen from the side (its normal at the tip up)", draw,
+                 [surface.closest_point(tips[0])[1]])
+
+
+def _view_curve(m: dict, P, tips) -> _View:
+    curve = _shape_of(m)
+    u, v, _ = plane_basis(m.get("normal", [0.0, 0.0, 1.0]))
+
+    def draw(ax, uv):
+        C = uv(np.array([curve.evaluate(x) for x in np.linspace(curve.lower, curve.upper, 400)]))
+        ax.plot(C[:, 0], C[:, 1], ls="--", color="0.45", lw=1.2, label="the curve")
+        ax.plot(*C[0], marker="s", color="0.3", ms=5, ls="none", label="its ends (stops)")
+        ax.plot(*C[-1], marker="s", color="0.3", ms=5, ls="none")
+
+    return _View(u, v, "face-on, seen from the side the hand is on", draw,
+                 [curve.evaluate(curve.lower), curve.evaluate(curve.upper)])
+
+
 def _view_default(m: dict, P, tips) -> _View:
     u, v, _ = plane_basis([0.0, 0.0, 1.0])
     return _View(u, v, "world x-y")
@@ -162,6 +210,9 @@ VIEWS = {
     "Probe": _view_probe,
     "PointPivot": _view_point_pivot,
     "LineGuide": _view_line_guide,
+    "SurfaceProbe": _view_surface_probe,
+    "CurveGuide": _view_curve,
+    "HandlePath": _view_curve,
 }
 
 
@@ -423,7 +474,8 @@ def plane_figure(
     u, v = view.u, view.v
     contacts = result.info.get("grip_contacts", [-0.015, -0.05])
     resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
-    draw_tip = mech["type"] != "PlanarArm"  # a PlanarArm's tip is its pivot
+    # a PlanarArm's tip is its pivot; a HandlePath holds the handle itself
+    draw_tip = mech["type"] not in ("PlanarArm", "HandlePath")
 
     def uv(x):
         x = np.atleast_2d(x)
@@ -619,21 +671,17 @@ def _panel_tip_height(ax, result, mech, t, F) -> None:
     """The tip's signed height above the surface (the log's dist_normal)."""
     h = result.col("dist_normal")
     ax.plot(t, h * 1e3, color="k", lw=1.0, label="tip height")
-    ax.axhline(
-        0.0,
-        color="tab:red",
-        ls="--",
-        lw=0.8,
-        label="the plane" if mech["type"] == "Probe" else "the point / line",
-    )
+    g = geometry_of(mech)
+    target = g.target if g is not None else "the mechanism"
+    ax.axhline(0.0, color="tab:red", ls="--", lw=0.8, label=target)
     ax.fill_between(
         t, h * 1e3, 0.0, where=h < 0, color="tab:red", alpha=0.15, label="tip behind it"
     )
-    if mech["type"] != "Probe":
+    if mech["type"] not in ("Probe", "SurfaceProbe"):
         ax.plot(
             t, result.col("dist_across") * 1e3, color="tab:blue", lw=0.9, label="tip offset across"
         )
-    what = "the plane" if mech["type"] == "Probe" else "it, along its normal"
+    what = target if mech["type"] in ("Probe", "SurfaceProbe") else "it, along its normal"
     ax.set_ylabel(f"tip height above\n{what} [mm]")
     ax.legend(fontsize=7, loc="lower left", ncol=2)
 
@@ -648,6 +696,24 @@ def _panel_normal_force(ax, result, mech, t, F) -> None:
     kp = float(result.info["controller_model"]["kp"][0])  # the resolved Kp along x
     depth = np.maximum(-h, 0.0) if mech.get("unilateral") else -h
     ax.plot(t, F @ n, color="crimson", label="device force along the normal")
+    ax.plot(t, kp * depth, color="0.3", ls=":", lw=1.2, label=f"Kp × depth (Kp = {kp:g} N/m)")
+    ax.set_ylabel("force along the\nnormal [N]")
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + 0.35 * (hi - lo))
+    ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
+
+
+def _panel_surface_force(ax, result, mech, t, F) -> None:
+    """Force along the surface's normal at the tip's closest point against Kp times the
+    depth (unilateral: the surface pushes only while the tip is behind it)."""
+    surface = _shape_of(mech)
+    tips = result.cols("px", "py", "pz") + _length(mech) * result.cols("sx", "sy", "sz")
+    normals = np.array([surface.normal(*surface.closest_point(x)[0]) for x in tips])
+    h = result.col("dist_normal")
+    kp = float(result.info["controller_model"]["kp"][0])
+    depth = np.maximum(-h, 0.0) if mech.get("unilateral") else -h
+    ax.plot(t, np.sum(F * normals, axis=1), color="crimson",
+            label="device force along the surface's normal")
     ax.plot(t, kp * depth, color="0.3", ls=":", lw=1.2, label=f"Kp × depth (Kp = {kp:g} N/m)")
     ax.set_ylabel("force along the\nnormal [N]")
     lo, hi = ax.get_ylim()
@@ -677,6 +743,9 @@ PANELS = {
     "Probe": (_panel_tip_height, _panel_normal_force),
     "PointPivot": (_panel_distance_log, _panel_tip_height),
     "LineGuide": (_panel_distance_log, _panel_tip_height),
+    "SurfaceProbe": (_panel_tip_height, _panel_surface_force),
+    "CurveGuide": (_panel_distance_log, _panel_tip_height),
+    "HandlePath": (_panel_distance_log,),
 }
 
 
@@ -715,6 +784,58 @@ def time_figure(
     return out
 
 
+#: mechanisms whose geometry a plane view cannot show whole: a 3-D figure (scene.png)
+SHAPED = ("SurfaceProbe", "CurveGuide", "HandlePath")
+
+
+def scene_figure(result, path: str | Path, max_points: int | None = None,
+                 block_rows: int | None = None) -> dict:
+    """The mechanism's surface or curve in 3-D with the handle's and the tip's paths, the
+    tip coloured where it touches (dist_normal <= 0 for a probe on a surface) and the
+    stylus at moments of the run. Returns {"rows": the log's rows}."""
+    plt = _plt()
+    result = select_rows(result, "plane", max_points, block_rows)
+    mech = _mechanism(result)
+    shape = _shape_of(mech)
+    L = 0.0 if mech["type"] == "HandlePath" else _length(mech)
+    P = result.cols("px", "py", "pz")
+    S = result.cols("sx", "sy", "sz")
+    tips = P + L * S
+    fig = plt.figure(figsize=(7.0, 6.0), dpi=110)
+    ax = fig.add_subplot(projection="3d")
+    if "surface" in mech:
+        G = _surface_grid(shape, 20)
+        ax.plot_wireframe(G[..., 0], G[..., 1], G[..., 2], color="0.6", lw=0.5,
+                          label="the surface")
+        touching = result.col("dist_normal") <= 0.0
+    else:
+        C = np.array([shape.evaluate(x) for x in np.linspace(shape.lower, shape.upper, 300)])
+        ax.plot(C[:, 0], C[:, 1], C[:, 2], color="0.35", ls="--", lw=1.2, label="the curve")
+        touching = result.col("dist") <= 1e-3
+    ax.plot(P[:, 0], P[:, 1], P[:, 2], color="0.3", lw=0.8, label="handle path")
+    if L > 0:
+        ax.plot(tips[:, 0], tips[:, 1], tips[:, 2], color="tab:brown", lw=0.8, ls=":",
+                label="tip path")
+        ax.scatter(*tips[touching].T, s=2, color="crimson", label="tip touching / on it")
+    for k in _snapshot_indices(result):
+        seg = np.array([P[k] - 0.4 * _length(mech) * S[k], P[k] + L * S[k]])
+        ax.plot(seg[:, 0], seg[:, 1], seg[:, 2], color="tab:blue", lw=2.0, alpha=0.7)
+    X = np.vstack([P, tips])
+    c, r = X.mean(axis=0), 0.55 * float(np.ptp(X, axis=0).max() + 0.02)
+    ax.set_xlim(c[0] - r, c[0] + r)
+    ax.set_ylim(c[1] - r, c[1] + r)
+    ax.set_zlim(c[2] - r, c[2] + r)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.legend(fontsize=7, loc="upper left")
+    ax.set_title(f"{result.scenario.name}: {mech['type']} in 3-D", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return {"rows": result.n_cycles}
+
+
 def write_figures(
     result,
     out_dir: str | Path,
@@ -728,4 +849,8 @@ def write_figures(
     out.mkdir(parents=True, exist_ok=True)
     plane_figure(result, out / "plane.png", force_scale, max_points, block_rows)
     time_figure(result, out / "time.png", max_points, block_rows)
-    return [out / "plane.png", out / "time.png"]
+    written = [out / "plane.png", out / "time.png"]
+    if _mechanism(result)["type"] in SHAPED:
+        scene_figure(result, out / "scene.png", max_points, block_rows)
+        written.append(out / "scene.png")
+    return written

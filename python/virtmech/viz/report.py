@@ -121,7 +121,10 @@ def write_index(out_dir: str | Path, entries: list[dict], title: str = "virtmech
             f"<p>{html.escape(e['description'])}</p>"
             f'<p><a href="{d}/{log}">{log}</a> · <a href="{d}/run.json">run.json</a></p>'
             f'<div class="figs"><img src="{d}/plane.png" alt="{d} plane">'
-            f'<img src="{d}/time.png" alt="{d} time"></div>'
+            f'<img src="{d}/time.png" alt="{d} time">'
+            + (f'<img src="{d}/scene.png" alt="{d} in 3-D">'
+               if (Path(out_dir) / e["dir"] / "scene.png").is_file() else "")
+            + "</div>"
             "</section>"
         )
     page = f"""<!doctype html>
