@@ -28,6 +28,7 @@ import numpy as np
 
 import virtmech as vm
 
+from ..shapes import shape_from_dict
 from . import inner
 from .geometry import COLUMNS as DIST_COLUMNS
 from .geometry import distances
@@ -41,7 +42,6 @@ from .model import (
     compile_model,
     world_gravity,
 )
-from ..shapes import shape_from_dict
 from .sensors import Sensors, SensorSettings
 
 # ---------------------------------------------------------------------------------------
