@@ -18,6 +18,7 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 using virtmech::Controller;
+using virtmech::MechanismSet;
 using namespace virtmech::sim;
 
 namespace {
@@ -85,17 +86,18 @@ LogLayout log_layout(const nb::dict& d) {
        {"theta", &L::theta}, {"theta_star", &L::theta_star}, {"e", &L::e}, {"e_dot", &L::e_dot},
        {"e_star", &L::e_star}, {"e_star_dot", &L::e_star_dot}, {"f_null", &L::f_null},
        {"f_range", &L::f_range}, {"hand_wrench", &L::hand_wrench}, {"anchor", &L::anchor},
-       {"segment", &L::segment}});
+       {"segment", &L::segment}, {"member", &L::member}});
 }
 
 struct PyServoLoop {
-  PyServoLoop(Controller& controller, std::uintptr_t model, std::uintptr_t data,
+  template <typename Renderer>  // a Controller or a MechanismSet
+  PyServoLoop(Renderer& renderer, std::uintptr_t model, std::uintptr_t data,
               CF64 coupling_inv, CF64 coupling_offset, std::vector<int> actuated, int substeps,
               double period_s, std::vector<int> comp_bodies, std::vector<double> comp_masses,
               CF64 gravity, double quantum, int delay_cycles, double velocity_alpha,
               int hand_body, const nb::dict& plan, const nb::dict& log)
-      : loop(controller, reinterpret_cast<mjModel*>(model), reinterpret_cast<mjData*>(data),
-             settings(controller.device().dof(), coupling_inv, coupling_offset,
+      : loop(renderer, reinterpret_cast<mjModel*>(model), reinterpret_cast<mjData*>(data),
+             settings(renderer.device().dof(), coupling_inv, coupling_offset,
                       std::move(actuated), substeps, period_s, std::move(comp_bodies),
                       std::move(comp_masses), gravity, quantum, delay_cycles, velocity_alpha,
                       hand_body),
@@ -153,6 +155,14 @@ NB_MODULE(_sim, m) {
   m.def("mujoco_library_version", &mj_version, "mj_version() of the MuJoCo library loaded.");
   nb::class_<PyServoLoop>(m, "ServoLoop",
                           "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).")
+      .def(nb::init<MechanismSet&, std::uintptr_t, std::uintptr_t, CF64, CF64, std::vector<int>,
+                    int, double, std::vector<int>, std::vector<double>, CF64, double, int,
+                    double, int, const nb::dict&, const nb::dict&>(),
+           "controller"_a, "model"_a, "data"_a, "coupling_inv"_a, "coupling_offset"_a,
+           "actuated"_a, "substeps"_a, "period_s"_a, "comp_bodies"_a, "comp_masses"_a,
+           "gravity"_a, "quantum"_a, "delay_cycles"_a, "velocity_alpha"_a, "hand_body"_a,
+           "plan_layout"_a, "log_layout"_a, nb::keep_alive<1, 2>(),
+           "The loop rendering a MechanismSet (controller: the set).")
       .def(nb::init<Controller&, std::uintptr_t, std::uintptr_t, CF64, CF64, std::vector<int>,
                     int, double, std::vector<int>, std::vector<double>, CF64, double, int,
                     double, int, const nb::dict&, const nb::dict&>(),

@@ -1,6 +1,7 @@
 // The servo-rate loop of virtmech.sim (see servo_loop.hpp).
 #include "virtmech/sim/servo_loop.hpp"
 
+
 #include <algorithm>
 #include <cmath>
 #include <mutex>
@@ -49,10 +50,22 @@ TimerOff::~TimerOff() {
 
 ServoLoop::ServoLoop(Controller& controller, mjModel* model, mjData* data,
                      LoopSettings settings, const PlanLayout& plan, const LogLayout& log)
-    : ctrl_(controller), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
-  require(model != nullptr && data != nullptr, "model, data: expected an mjModel and an mjData");
-  n_ = ctrl_.device().dof();
-  mdof_ = ctrl_.mechanism().dof();
+    : ctrl_(&controller), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+  mdof_ = controller.mechanism().dof();
+  init();
+}
+
+ServoLoop::ServoLoop(MechanismSet& set, mjModel* model, mjData* data, LoopSettings settings,
+                     const PlanLayout& plan, const LogLayout& log)
+    : set_(&set), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+  require(set.size() > 0, "set: expected a mechanism set with at least one member");
+  for (int i = 0; i < set.size(); ++i) mdof_ = std::max(mdof_, set.member(i).mechanism().dof());
+  init();
+}
+
+void ServoLoop::init() {
+  require(m_ != nullptr && d_ != nullptr, "model, data: expected an mjModel and an mjData");
+  n_ = device().dof();
   const std::string n = std::to_string(n_);
   require(m_->nq == n_ && m_->nv == n_,
           "model: expected one MuJoCo hinge or slide joint per device joint (nq = nv = " + n +
@@ -130,7 +143,8 @@ ServoLoop::ServoLoop(Controller& controller, mjModel* model, mjData* data,
                 {"f_range", log_.f_range, 6},
                 {"hand_wrench", log_.hand_wrench, 6},
                 {"anchor", log_.anchor, 3},
-                {"segment", log_.segment, 1}};
+                {"segment", log_.segment, 1},
+                {"member", log_.member, 1}};
   for (const auto& f : fields) check_field("log", f.name, f.col, f.width, L, true);
 
   Cinv_ = s_.coupling_inv;
@@ -227,7 +241,7 @@ void ServoLoop::cycle(long k, const double* plan, const double* noise, bool drop
   for (int s = 0; s < s_.substeps; ++s) {
     mj_step1(m_, d_);
     read_state();
-    ctrl_.device().forward_jacobian(q_.data(), pose_, J_);
+    device().forward_jacobian(q_.data(), pose_, J_);
     if (s == 0) {
       T_h = pose_;
       q_cycle_ = q_;
@@ -255,7 +269,12 @@ void ServoLoop::cycle(long k, const double* plan, const double* noise, bool drop
 
 void ServoLoop::control(double t, const double* noise, bool dropout) {
   sense(noise, dropout);
-  ctrl_.step(received_.data(), dqf_.data(), out_, t);
+  if (ctrl_) {
+    ctrl_->step(received_.data(), dqf_.data(), out_, t);
+  } else {
+    set_->step(received_.data(), dqf_.data(), set_out_, t);
+    out_ = set_out_.cycle;
+  }
   cmd_ = out_.torque;
   if (!s_.comp_bodies.empty()) {
     // gravity through the motors: -C^T sum_b J_com,b^T m_b g (kinematics from mj_step1)
@@ -301,8 +320,21 @@ void ServoLoop::write_row(double t, const Pose& T_h, const Vector6& tw0, const V
   put1(log_.ramp, out_.ramp);
   put1(log_.iterations, double(out_.iterations));
   put1(log_.iterations_star, double(out_.iterations_star));
-  put(log_.theta, out_.theta);
-  put(log_.theta_star, out_.theta_star);
+  if (set_) {  // the rendered member's joints, NaN past them (all NaN with none)
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (int col : {log_.theta, log_.theta_star}) {
+      if (col >= 0) std::fill(row + col, row + col + mdof_, nan);
+    }
+    put1(log_.member, double(set_out_.active));
+    if (set_out_.active >= 0) {
+      put(log_.theta, out_.theta);
+      put(log_.theta_star, out_.theta_star);
+    }
+  } else {
+    put1(log_.member, 0.0);
+    put(log_.theta, out_.theta);
+    put(log_.theta_star, out_.theta_star);
+  }
   put(log_.e, out_.error);
   put(log_.e_dot, out_.error_dot);
   put(log_.e_star, out_.error_star);

@@ -8,7 +8,7 @@ import pytest
 import virtmech.scenarios as sc
 
 PAPER = [f"{d}-fig{n}" for d in ("omni", "planar3r") for n in (9, 10, 11, 12)]
-SHAPES = ["omni-surface-nurbs", "omni-surface-sphere", "omni-letter", "omni-trocar"]
+SHAPES = ["omni-surface-nurbs", "omni-surface-sphere", "omni-letter", "omni-trocar", "omni-snap"]
 SHIPPED = [*PAPER, "omni-fig11-passive", "omni-contact", "arm7-contact", *SHAPES]
 
 GOOD = """

@@ -105,3 +105,37 @@ def test_the_trocar_keeps_the_stylus_through_the_port_while_it_slides_in(runs):
     assert depth.max() - depth[: 400].mean() > 0.012  # pushed in by more than 12 mm
     tilt = np.degrees(np.arccos(np.clip(-S[:, 1], -1, 1)))  # from straight down (-y)
     assert tilt.max() > 8.0  # the stylus swung about the port
+
+
+def line_distance(X, point, direction=(1.0, 0.0, 0.0)):
+    d = np.asarray(direction) / np.linalg.norm(direction)
+    w = X - np.asarray(point)
+    return np.linalg.norm(w - np.outer(w @ d, d), axis=1)
+
+
+def test_snapping_between_two_guides_follows_the_hysteresis_and_the_rate():
+    """omni-snap: the tip is pulled from guide 0 to guide 1 and back. Each guide lets go
+    where the tip is its release distance off it and the other engages within its snap
+    distance (distances from the log's handle pose and the lines themselves); while the set
+    switches, the force moves at most force_rate x period per cycle."""
+    S = sc.load("omni-snap")
+    run = sim.run(S, progress=False)
+    m, st = S["mechanism"], S["set"]
+    lines = [m["point"], st["members"][0]["point"]]
+    X = tips(run, m)
+    member = run.col("member").astype(int)
+    changes = np.flatnonzero(np.diff(member) != 0) + 1
+    assert [int(member[0])] + [int(member[i]) for i in changes] == [0, -1, 1, -1, 0]
+    for i in changes:
+        was, now = member[i - 1], member[i]
+        if now == -1:  # released: the tip beyond the release distance of the old guide
+            assert line_distance(X[i - 1 : i + 1], lines[was]).max() > 0.95 * st["release_distance"]
+        else:  # engaged within the snap distance of the new one
+            assert line_distance(X[i : i + 1], lines[now])[0] < 1.05 * st["snap_distance"]
+    F = run.cols("fx", "fy", "fz")
+    switching = (run.col("status").astype(int) & vm.status.SWITCHING) != 0
+    assert switching.sum() > 10
+    step = np.linalg.norm(np.diff(F, axis=0), axis=1)[switching[1:]]
+    assert step.max() <= st["force_rate"] * S["controller"]["period_s"] + 1e-9
+    # and the tip ends on guide 0, held there
+    assert line_distance(X[-100:], lines[0]).max() < 1e-3

@@ -94,6 +94,7 @@ class PyServoLoop:
                 "e_star_dot0": out.error_star_dot, "f_null0": out.wrench_null,
                 "f_range0": out.wrench_range, "fhx": W0, "ax": row[plan_slice("ax", 3)],
                 "segment": [row[PLAN_INDEX["segment"]]],
+                "member": [0.0],  # one controller: its mechanism is member 0
             }  # fmt: skip
             for first, v in fields.items():
                 log[r, c[first] : c[first] + len(v)] = v

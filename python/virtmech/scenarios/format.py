@@ -229,6 +229,29 @@ MECHANISM = Field(
     },
 )
 
+#: several mechanisms at once: the [mechanism] is member 0, [[set.members]] the others
+#: (docs/scenarios.md); a set of one mechanism is that mechanism's controller alone
+SET = Field(
+    "table",
+    children={
+        "members": Field(
+            "tables",
+            default=[],
+            variant_key="type",
+            variants=MECHANISM.variants,
+            doc="the other mechanisms, as [mechanism] tables",
+        ),
+        "snap_distance": num(0.005, min=0, min_exclusive=True, max=1.0,
+                             doc="a member engages within this distance [m]"),
+        "release_distance": num(0.010, min=0, min_exclusive=True, max=1.0,
+                                doc="... and lets go beyond this one [m] (>= snap_distance)"),
+        "force_rate": num(100.0, min=0, min_exclusive=True, max=1e6,
+                          doc="largest change of the force while switching [N/s]"),
+        "moment_rate": num(1.0, min=0, min_exclusive=True, max=1e6,
+                           doc="largest change of the moment while switching [N m/s]"),
+    },
+)
+
 CONTROLLER = Field(
     "table",
     children={
@@ -428,6 +451,7 @@ SCENARIO = Field(
         "controller": CONTROLLER,
         "physics": PHYSICS,
         "sensors": SENSORS,
+        "set": SET,
         "initial": INITIAL,
         "human": HUMAN,
         "intent": INTENT,

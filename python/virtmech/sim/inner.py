@@ -66,6 +66,7 @@ LOG_FIELDS = {
     "hand_wrench": "fhx",
     "anchor": "ax",
     "segment": "segment",
+    "member": "member",
 }
 
 

@@ -155,6 +155,29 @@ def make_mechanism(m: dict):
     raise ValueError(f"mechanism.type: unknown {t!r}")
 
 
+def make_set(S: dict, device, ctrl):
+    """The scenario's renderer: `ctrl` itself, or with [[set.members]] a vm.MechanismSet of
+    the [mechanism] (member 0) and the members, each with the [controller] settings."""
+    st = S.get("set") or {}
+    extra = st.get("members") or []
+    if not extra:
+        return ctrl
+    s = vm.MechanismSet(
+        device,
+        1 + len(extra),
+        snap_distance=st["snap_distance"],
+        release_distance=st["release_distance"],
+        force_rate=st["force_rate"],
+        moment_rate=st["moment_rate"],
+        period_s=S["controller"]["period_s"],
+    )
+    s.add(ctrl)
+    kw = controller_kwargs(S["controller"])
+    for mm in extra:
+        s.add(vm.Controller(device, make_mechanism(mm), **kw))
+    return s
+
+
 def controller_kwargs(c: dict) -> dict:
     kw = {
         k: c[k]
@@ -428,7 +451,7 @@ def log_columns(n: int, m: int) -> list[str]:
         + _names("f_null", 6)
         + _names("f_range", 6)
         + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz"]
-        + ["ax", "ay", "az", "segment"]
+        + ["ax", "ay", "az", "segment", "member"]
         + list(DIST_COLUMNS)
         + ["arm_pos_angle", "arm_stylus_angle"]
         + [f"ff1{c}" for c in xyz]
@@ -465,6 +488,7 @@ UNITS = {
     "mhx": "N·m (hand on handle)",
     "ax": "m (hand anchor)",
     "segment": "intent segment index",
+    "member": "mechanism rendered: 0 the [mechanism], i the set's i-th (-1: none)",
     "dist": "m (distance from where the mechanism allows; sim.geometry)",
     "dist_signed": "m (signed distance from the mechanism's path or surface; sim.geometry)",
     "dist_normal": "m (part along the mechanism's normal; sim.geometry)",
@@ -565,6 +589,8 @@ def preflight(scenario) -> None:
         "controller",
         lambda: vm.Controller(device, mech, **controller_kwargs(S["controller"])),
     )
+    _built(scenario, "set", lambda: make_set(S, device, vm.Controller(
+        device, mech, **controller_kwargs(S["controller"]))))
     _built(scenario, "initial", lambda: initial_joints(S, device, mech))
 
 
@@ -616,6 +642,10 @@ def run(
     )
     T_ctrl = S["controller"]["period_s"]
     n, m = device.dof, mech.dof
+    renderer, members = _built(scenario, "set", lambda: make_set(S, device, ctrl)), []
+    if renderer is not ctrl:
+        members = [renderer.member(i).to_dict() for i in range(renderer.size)]
+        m = max(renderer.member(i).dof for i in range(renderer.size))
     actuated = np.asarray(device.actuated, dtype=bool)
     act_idx = np.flatnonzero(actuated)
 
@@ -665,7 +695,7 @@ def run(
     sensors = Sensors(sensor_settings, n, T_ctrl, rng)
     comp = comp_bodies if grav_comp else []
     servo = inner.ServoLoop(
-        controller=ctrl,
+        controller=renderer,
         model=model,
         data=data,
         coupling_inv=Cinv,
@@ -723,6 +753,8 @@ def run(
         "device": device.to_dict(),
         "device_physics": phys.to_dict(),
         "mechanism": mech.to_dict(),
+        **({"set_members": members, "set": dict(S["set"], members=len(members))}
+           if members else {}),
         "controller_model": {
             k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in ctrl.model.items()
         },

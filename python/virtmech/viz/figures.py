@@ -229,7 +229,7 @@ FIGURE_COLUMNS = (
     ["t", "px", "py", "pz", "sx", "sy", "sz", "fx", "fy", "fz"]
     + ["ff1x", "ff1y", "ff1z", "ff2x", "ff2y", "ff2z", "fhx", "fhy", "fhz"]
     + ["dist", "dist_normal", "dist_across", "arm_pos_angle", "arm_stylus_angle"]
-    + ["theta0", "theta_star0"]
+    + ["theta0", "theta_star0", "status", "member"]
 )
 #: columns the selection adds: the cumulative activity (_snapshot_indices) and the
 #: PlanarArm's angles unwrapped over the whole run
@@ -721,6 +721,18 @@ def _panel_surface_force(ax, result, mech, t, F) -> None:
     ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
 
 
+def _panel_member(ax, result, mech, t, F) -> None:
+    """A mechanism set: the member rendered (-1: none) and the switching blends."""
+    member = result.col("member")
+    ax.step(t, member, where="post", color="k", lw=1.2, label="member rendered (-1: none)")
+    switching = (result.col("status").astype(int) & 64) != 0  # virtmech.status.SWITCHING
+    ax.fill_between(t, -1.2, member.max() + 0.2, where=switching, step="post",
+                    color="tab:orange", alpha=0.3, label="switching (force rate-limited)")
+    ax.set_ylabel("mechanism set\nmember")
+    ax.set_yticks(np.arange(-1, int(member.max()) + 1))
+    ax.legend(fontsize=7, loc="upper right", framealpha=0.9)
+
+
 def _panel_fingers(ax, result, mech, t, F) -> None:
     S = result.cols("sx", "sy", "sz")
     F1 = result.cols("ff1x", "ff1y", "ff1z")
@@ -767,6 +779,8 @@ def time_figure(
     F = result.cols("fx", "fy", "fz")
     resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
     panels = [_panel_force, *PANELS.get(mech["type"], (_panel_distance_log,))]
+    if result.info.get("set_members"):
+        panels.append(_panel_member)
     if resist:
         panels.append(_panel_fingers)
     rows = len(panels)

@@ -56,6 +56,9 @@ struct LogLayout {
       wrench = -1, tau = -1, tau_motor = -1, status = -1, ramp = -1, iterations = -1,
       iterations_star = -1, theta = -1, theta_star = -1, e = -1, e_dot = -1, e_star = -1,
       e_star_dot = -1, f_null = -1, f_range = -1, hand_wrench = -1, anchor = -1, segment = -1;
+  /// the MechanismSet member rendered (-1: none); with a set, theta and theta_star are the
+  /// rendered member's (NaN past its joints, all NaN with none), m the largest member's
+  int member = -1;
 };
 
 /// How the device sits in the MuJoCo model, and the simulated driver.
@@ -84,6 +87,10 @@ class ServoLoop {
   /// per actuated joint) and the layouts; throws std::invalid_argument naming what is wrong.
   ServoLoop(Controller& controller, mjModel* model, mjData* data, LoopSettings settings,
             const PlanLayout& plan, const LogLayout& log);
+  /// The same loop rendering a MechanismSet (its members' controllers; the log's theta
+  /// columns as wide as the largest member's joints).
+  ServoLoop(MechanismSet& set, mjModel* model, mjData* data, LoopSettings settings,
+            const PlanLayout& plan, const LogLayout& log);
   ~ServoLoop();
   ServoLoop(const ServoLoop&) = delete;
   ServoLoop& operator=(const ServoLoop&) = delete;
@@ -100,6 +107,8 @@ class ServoLoop {
   const LogLayout& log_layout() const noexcept { return log_; }
 
  private:
+  void init();
+  const Device& device() const noexcept { return ctrl_ ? ctrl_->device() : set_->device(); }
   void read_state();
   void sense(const double* noise, bool dropout);
   void control(double t, const double* noise, bool dropout);
@@ -110,7 +119,9 @@ class ServoLoop {
   void write_row(double t, const Pose& T_h, const Vector6& tw0, const Vector6& wrench0,
                  const double* plan, double* row) const;
 
-  Controller& ctrl_;
+  Controller* ctrl_ = nullptr;  // one of the two
+  MechanismSet* set_ = nullptr;
+  MechanismSetOutput set_out_;
   mjModel* m_;
   mjData* d_;
   LoopSettings s_;
