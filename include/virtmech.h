@@ -1,10 +1,12 @@
 /* virtmech C API: a virtual-mechanism controller for a vendor servo callback
  * (OpenHaptics HD scheduler, CHAI3D, or any 1 kHz+ loop).
  *
- * Allocation: only vm_controller_create allocates (the controller and every buffer
- * it will use); vm_controller_destroy frees. vm_controller_step, vm_controller_reset and
- * vm_controller_diagnostics never allocate and never block. All units SI
- * (m, rad, N, N·m, s); convert from device-native units (mm, mN·m) at the boundary.
+ * Allocation: only the setup calls allocate: vm_controller_create, the shape creators
+ * (vm_nurbs_curve_create, ...), vm_mechanism_set_create and vm_mechanism_set_add; the
+ * matching _destroy calls free. The cycle calls vm_controller_step, vm_controller_reset,
+ * vm_controller_diagnostics and their vm_mechanism_set_ counterparts never allocate and never
+ * block. All units SI (m, rad, N, N·m, s); convert from device-native units (mm, mN·m) at the
+ * boundary.
  */
 #ifndef VIRTMECH_H_
 #define VIRTMECH_H_
@@ -21,7 +23,8 @@ extern "C" {
 #define VM_ERROR_ARGUMENT -1    /* a description or argument was invalid (see message) */
 #define VM_ERROR_INTERNAL -2    /* unexpected failure (out of memory) */
 
-/* Status bits returned by vm_controller_step (same as virtmech::status). */
+/* Status bits returned by vm_controller_step and vm_mechanism_set_step (same as
+ * virtmech::status). */
 #define VM_STATUS_OK 0u
 #define VM_STATUS_RAMPING (1u << 0)
 #define VM_STATUS_FORCE_CLAMPED (1u << 1)
@@ -39,6 +42,9 @@ extern "C" {
 /* Largest number of joints of a device or mechanism. */
 #define VM_MAX_DOF 8
 
+/* Largest capacity of a mechanism set (vm_mechanism_set_create). */
+#define VM_MAX_SET_MEMBERS 16
+
 /* Device models. */
 typedef enum vm_device_type {
   VM_DEVICE_PHANTOM_OMNI = 0, /* PHANTOM Omni / Geomagic Touch, default parameters */
@@ -53,8 +59,22 @@ typedef enum vm_mechanism_type {
   VM_MECHANISM_PROBE = 1,       /* point = plane point, normal = plane normal, length */
   VM_MECHANISM_POINT_PIVOT = 2, /* point, normal, length */
   VM_MECHANISM_LINE_GUIDE = 3,  /* point, direction, length, normal */
-  VM_MECHANISM_SERIAL = 4       /* a serial chain */
+  VM_MECHANISM_SERIAL = 4,      /* a serial chain */
+  VM_MECHANISM_SURFACE_PROBE = 5, /* shape = a surface, length, unilateral: the probe's tip
+                                     held on the surface (stylus of the given length) */
+  VM_MECHANISM_CURVE_GUIDE = 6,   /* shape = a curve, length, normal (unit; zero = +z): the
+                                     probe's tip held on the curve, the hand on the normal's
+                                     side */
+  VM_MECHANISM_HANDLE_PATH = 7    /* shape = a curve, normal (unit; zero = +z), length_scale
+                                     (0 = 0.1 m): the handle itself held on the curve, its
+                                     orientation free */
 } vm_mechanism_type;
+
+/* A curve or surface for the shape mechanisms (VM_MECHANISM_SURFACE_PROBE, _CURVE_GUIDE,
+ * _HANDLE_PATH); docs/geometry.md. Opaque; immutable once created. A controller or set
+ * member built from a shape shares it: the shape may be destroyed right after
+ * vm_controller_create / vm_mechanism_set_add, the mechanism keeps its own reference. */
+typedef struct vm_shape vm_shape;
 
 /* One joint of a serial chain: type 0 revolute, 1 prismatic; axis in the joint frame;
  * origin = pose of the joint frame in the previous frame at zero, as a row-major 4x4. */
@@ -106,9 +126,12 @@ typedef struct vm_mechanism_desc {
                           tangent (Probe, PointPivot; zero = automatic) */
   double length;       /* [m] */
   int unilateral;      /* 1: the tip may lift off toward +normal (Probe, PointPivot,
-                          LineGuide): the surface pushes but never pulls */
+                          LineGuide; SurfaceProbe: off the surface's normal side): the
+                          surface pushes but never pulls */
   vm_chain chain;      /* (serial) */
-  double length_scale; /* [m] (serial) */
+  double length_scale; /* [m] (serial, HandlePath: 0 = 0.1) */
+  const vm_shape* shape; /* (SurfaceProbe: a surface; CurveGuide, HandlePath: a curve);
+                            NULL by vm_mechanism_desc_init. Not kept past the create call. */
 } vm_mechanism_desc;
 
 /* Controller settings; vm_settings_init fills the defaults. has_* = 0 keeps a default. */
@@ -156,6 +179,33 @@ typedef struct vm_diagnostics {
 
 typedef struct vm_controller vm_controller;
 
+/* Settings of a mechanism set; vm_set_settings_init fills the defaults. */
+typedef struct vm_set_settings {
+  double snap_distance;    /* a member engages within this distance [m] */
+  double release_distance; /* ... and lets go beyond this one [m] (>= snap_distance) */
+  double force_rate;       /* largest change of the force while switching [N/s] */
+  double moment_rate;      /* largest change of the moment while switching [N·m/s] */
+  double period_s;         /* servo period [s], for the rates */
+} vm_set_settings;
+
+/* Diagnostics of the last cycle of a mechanism set. */
+typedef struct vm_set_diagnostics {
+  vm_diagnostics cycle; /* the rendered member's cycle, torque and wrench the set's output
+                           (while switching, the blend); with no member engaged member 0's
+                           cycle with zero force (mechanism_dof: that member's) */
+  int active;           /* the member rendered, -1 for none */
+  int size;             /* members in the set */
+  double distance[VM_MAX_SET_MEMBERS]; /* each member's distance from the handle [m]; a
+                           unilateral member's tip height, 0 in contact; 0 past size */
+  uint32_t contact;     /* bit i: member i is unilateral and in contact */
+  int switching;        /* 1: the output is moving from one member's force to another's */
+} vm_set_diagnostics;
+
+/* Several mechanisms on one device, at most one rendered per cycle: a member engages when
+ * the handle comes within snap_distance of it and lets go beyond release_distance; switching
+ * members moves the force at no more than the set rates (docs/theory.md, section 7). */
+typedef struct vm_mechanism_set vm_mechanism_set;
+
 /* Fills a device description with defaults for the given type. Does not allocate. */
 void vm_device_desc_init(vm_device_desc* desc, vm_device_type type);
 /* Fills a mechanism description with defaults for the given type. Does not allocate. */
@@ -183,6 +233,71 @@ uint32_t vm_controller_step(vm_controller* controller, const double* q, const do
 void vm_controller_reset(vm_controller* controller);
 /* Copies the diagnostics of the last cycle. Does not allocate. */
 void vm_controller_diagnostics(const vm_controller* controller, vm_diagnostics* out);
+
+/* Shapes. Each creator validates its data, builds the shape and returns VM_OK; on failure
+ * VM_ERROR_ARGUMENT (VM_ERROR_INTERNAL: out of memory) with *out = NULL and a message naming
+ * the bad parameter in error (NUL-terminated, truncated to error_size; error may be NULL).
+ * The data are copied: the arrays may be freed after the call. */
+
+/* A NURBS curve: control_points n x 3 row-major [m], weights n (> 0), knots n + degree + 1
+ * non-decreasing values (clamped or not; multiplicity at most degree + 1), 1 <= degree <= 7,
+ * n >= degree + 1. The knot count follows from n and degree: the array must hold that many. */
+int vm_nurbs_curve_create(const double* control_points, const double* weights, int n,
+                          const double* knots, int degree, vm_shape** out, char* error,
+                          size_t error_size);
+/* A tensor-product NURBS surface: control_points nu*nv x 3 row-major, row i*nv + j the point
+ * P_ij [m]; weights nu*nv (> 0), row-major (entry i*nv + j weighs P_ij); knots_u nu +
+ * degree_u + 1 values, knots_v nv + degree_v + 1 (as a curve's); 1 <= degree_u, degree_v
+ * <= 7. */
+int vm_nurbs_surface_create(const double* control_points, const double* weights, int nu,
+                            int nv, const double* knots_u, const double* knots_v, int degree_u,
+                            int degree_v, vm_shape** out, char* error, size_t error_size);
+/* A sphere: center [m], radius > 0 [m], axis (non-zero; NULL: +z) toward the pole of the
+ * parametrisation (keep the poles away from where the probe works; docs/geometry.md). */
+int vm_sphere_create(const double center[3], double radius, const double axis[3],
+                     vm_shape** out, char* error, size_t error_size);
+/* An infinite circular cylinder: a point on its axis [m], the axis direction (non-zero),
+ * radius > 0 [m]. */
+int vm_cylinder_create(const double point[3], const double direction[3], double radius,
+                       vm_shape** out, char* error, size_t error_size);
+/* An infinite plane through point [m] with the given normal (non-zero). */
+int vm_plane_create(const double point[3], const double normal[3], vm_shape** out, char* error,
+                    size_t error_size);
+/* Releases a shape (NULL is allowed). Mechanisms built from it keep their own reference. */
+void vm_shape_destroy(vm_shape* shape);
+
+/* Mechanism sets. */
+
+/* Fills set settings with the defaults. Does not allocate. */
+void vm_set_settings_init(vm_set_settings* settings);
+/* Creates an empty set of at most capacity members (1 to VM_MAX_SET_MEMBERS) on the device;
+ * settings may be NULL (defaults). Allocates; returns VM_OK, or VM_ERROR_ARGUMENT with
+ * *out = NULL and a message naming the bad field (as vm_controller_create). */
+int vm_mechanism_set_create(const vm_device_desc* device, int capacity,
+                            const vm_set_settings* settings, vm_mechanism_set** out,
+                            char* error, size_t error_size);
+/* Adds a member: a controller of the mechanism on the set's device with the given settings
+ * (NULL: defaults). Allocates (not for the servo loop). Returns the member's index (>= 0),
+ * or VM_ERROR_ARGUMENT (a bad description, the set full) / VM_ERROR_INTERNAL with a
+ * message in error. */
+int vm_mechanism_set_add(vm_mechanism_set* set, const vm_mechanism_desc* mechanism,
+                         const vm_settings* settings, char* error, size_t error_size);
+/* Frees a set and its members (NULL is allowed). */
+void vm_mechanism_set_destroy(vm_mechanism_set* set);
+/* Number of device joints: the length of q, dq and tau. Does not allocate. */
+int vm_mechanism_set_dof(const vm_mechanism_set* set);
+/* One servo cycle of every member; the set renders at most one (tau, n entries; zero with no
+ * member added). Returns status bits (VM_STATUS_SWITCHING while blending). Same contract as
+ * vm_controller_step: never allocates, never fails; a fault status comes with tau = 0 (also
+ * for a NULL set, NULL q or dq, or a wrong n: tau gets n zeros, the status
+ * VM_STATUS_FAULT_BAD_SIZE, and every member ramps in again once the calls are right). */
+uint32_t vm_mechanism_set_step(vm_mechanism_set* set, const double* q, const double* dq, int n,
+                               double t_s, double* tau);
+/* Restarts every member and the selection. Does not allocate. */
+void vm_mechanism_set_reset(vm_mechanism_set* set);
+/* Copies the diagnostics of the last cycle. Does not allocate. */
+void vm_mechanism_set_diagnostics(const vm_mechanism_set* set, vm_set_diagnostics* out);
+
 /* The library's version, e.g. "0.1.0". */
 const char* vm_version(void);
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <exception>
+#include <limits>
 #include <memory>
 #include <new>
 #include <string>
@@ -27,6 +28,7 @@ static_assert(VM_STATUS_FAULT_BAD_SIZE == status::kFaultBadSize);
 static_assert(VM_STATUS_FAULT_OUT_OF_RANGE == status::kFaultOutOfRange);
 static_assert(VM_STATUS_FAULT_MASK == status::kFaultMask);
 static_assert(VM_MAX_DOF == kMaxDof);
+static_assert(VM_MAX_SET_MEMBERS == kMaxSetMembers);
 
 struct vm_controller {
   Controller controller;
@@ -35,6 +37,22 @@ struct vm_controller {
                 const ControllerSettings& s)
       : controller(std::move(d), std::move(m), s) {
     out.torque = JointVector::Zero(controller.device().dof());
+  }
+};
+
+// A curve or a surface (exactly one of them non-null).
+struct vm_shape {
+  std::shared_ptr<const Curve> curve;
+  std::shared_ptr<const Surface> surface;
+};
+
+struct vm_mechanism_set {
+  std::shared_ptr<const Device> device;  // the set's, for building members
+  MechanismSet set;
+  MechanismSetOutput out;
+  vm_mechanism_set(std::shared_ptr<const Device> d, int capacity, const MechanismSetSettings& s)
+      : device(d), set(std::move(d), capacity, s) {
+    out.cycle.torque = JointVector::Zero(set.device().dof());
   }
 };
 
@@ -145,11 +163,12 @@ std::shared_ptr<const Device> device_from(const vm_device_desc& d) {
 }
 
 bool unilateral_from(const vm_mechanism_desc& m) {
-  if (m.type == VM_MECHANISM_PLANAR_ARM || m.type == VM_MECHANISM_SERIAL) {
+  if (m.type == VM_MECHANISM_PLANAR_ARM || m.type == VM_MECHANISM_SERIAL ||
+      m.type == VM_MECHANISM_CURVE_GUIDE || m.type == VM_MECHANISM_HANDLE_PATH) {
     if (m.unilateral != 0) {
       throw std::invalid_argument(
-          "mechanism.unilateral: expected 0 (a PlanarArm or serial chain has no lift-off "
-          "joint; give a serial chain a joint limit instead), got " +
+          "mechanism.unilateral: expected 0 (a PlanarArm, CurveGuide, HandlePath or serial "
+          "chain has no lift-off joint; give a serial chain a joint limit instead), got " +
           std::to_string(m.unilateral));
     }
     return false;
@@ -159,6 +178,31 @@ bool unilateral_from(const vm_mechanism_desc& m) {
                                 std::to_string(m.unilateral));
   }
   return m.unilateral == 1;
+}
+
+const char* shape_kind(const vm_shape* s) {
+  return !s ? "NULL" : s->surface ? "a surface" : "a curve";
+}
+
+std::shared_ptr<const Surface> surface_of(const vm_mechanism_desc& m) {
+  if (m.shape && m.shape->surface) return m.shape->surface;
+  throw std::invalid_argument(
+      std::string("mechanism.shape: expected a surface (vm_nurbs_surface_create, "
+                  "vm_sphere_create, vm_cylinder_create or vm_plane_create), got ") +
+      shape_kind(m.shape));
+}
+
+std::shared_ptr<const Curve> curve_of(const vm_mechanism_desc& m) {
+  if (m.shape && m.shape->curve) return m.shape->curve;
+  throw std::invalid_argument(
+      std::string("mechanism.shape: expected a curve (vm_nurbs_curve_create), got ") +
+      shape_kind(m.shape));
+}
+
+// a zero normal means +z (CurveGuide, HandlePath)
+Eigen::Vector3d normal_or_z(const double* n) {
+  const Eigen::Vector3d v = v3(n);
+  return v.isZero(0.0) ? Eigen::Vector3d::UnitZ() : v;
 }
 
 std::shared_ptr<const Mechanism> mechanism_from(const vm_mechanism_desc& m) {
@@ -178,6 +222,15 @@ std::shared_ptr<const Mechanism> mechanism_from(const vm_mechanism_desc& m) {
     case VM_MECHANISM_SERIAL:
       unilateral_from(m);
       return std::make_shared<SerialChain>(chain_from(m.chain), m.length_scale);
+    case VM_MECHANISM_SURFACE_PROBE:
+      return std::make_shared<SurfaceProbe>(surface_of(m), m.length, unilateral_from(m));
+    case VM_MECHANISM_CURVE_GUIDE:
+      unilateral_from(m);
+      return std::make_shared<CurveGuide>(curve_of(m), m.length, normal_or_z(m.normal));
+    case VM_MECHANISM_HANDLE_PATH:
+      unilateral_from(m);
+      return std::make_shared<HandlePath>(curve_of(m), normal_or_z(m.normal),
+                                          m.length_scale == 0.0 ? 0.1 : m.length_scale);
   }
   throw std::invalid_argument("mechanism.type: expected a vm_mechanism_type, got " +
                               std::to_string(static_cast<int>(m.type)));
@@ -271,6 +324,105 @@ void copy_vec(const Eigen::Ref<const Eigen::VectorXd>& v, double* out, int n) {
   for (int i = 0; i < n; ++i) out[i] = i < v.size() ? v[i] : 0.0;
 }
 
+// Runs a setup call: its result (VM_OK or an index) on success and an empty error; a thrown
+// std::invalid_argument is VM_ERROR_ARGUMENT, any other exception (out of memory)
+// VM_ERROR_INTERNAL, with the message in error.
+template <typename Call>
+int c_call(char* error, size_t error_size, Call call) {
+  try {
+    const int result = call();
+    write_error(error, error_size, "");
+    return result;
+  } catch (const std::invalid_argument& e) {
+    write_error(error, error_size, e.what());
+    return VM_ERROR_ARGUMENT;
+  } catch (const std::exception& e) {
+    write_error(error, error_size, e.what());
+    return VM_ERROR_INTERNAL;
+  }
+}
+
+// A creator: *out = make() (a new object), or NULL and an error.
+template <typename T, typename Make>
+int create_into(T** out, const char* what, char* error, size_t error_size, Make make) {
+  if (!out) {
+    write_error(error, error_size,
+                (std::string("out: expected a pointer to receive the ") + what + ", got NULL")
+                    .c_str());
+    return VM_ERROR_ARGUMENT;
+  }
+  *out = nullptr;
+  return c_call(error, error_size, [&] {
+    *out = make();
+    return VM_OK;
+  });
+}
+
+void require_array(const char* name, const void* p, const std::string& size) {
+  if (!p) {
+    throw std::invalid_argument(std::string(name) + ": expected " + size + " values, got NULL");
+  }
+}
+
+void require_count(const char* name, int n, int least, const char* what) {
+  if (n < least) {
+    throw std::invalid_argument(std::string(name) + ": expected at least " +
+                                std::to_string(least) + " " + what + ", got " +
+                                std::to_string(n));
+  }
+}
+
+// checked before a knot array's length n + degree + 1 is read (the constructors check it
+// again with the same message)
+void require_degree(const char* name, int p) {
+  if (p < 1 || p > kMaxNurbsDegree) {
+    throw std::invalid_argument(std::string(name) + ": expected 1 to " +
+                                std::to_string(kMaxNurbsDegree) + ", got " + std::to_string(p));
+  }
+}
+
+using RowPoints = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>;
+using Values = Eigen::Map<const Eigen::VectorXd>;
+
+// Copies the C++ cycle output into the C diagnostics (a controller's and a set's).
+void copy_diagnostics(const CycleOutput& o, int device_dof, int mechanism_dof,
+                      vm_diagnostics* d) {
+  d->device_dof = device_dof;
+  d->mechanism_dof = mechanism_dof;
+  copy_vec(o.torque, d->torque, VM_MAX_DOF);
+  copy_vec(o.wrench, d->wrench, 6);
+  copy_vec(o.wrench_null, d->wrench_null, 6);
+  copy_vec(o.wrench_range, d->wrench_range, 6);
+  copy_vec(o.wrench_unrendered, d->wrench_unrendered, 6);
+  copy_vec(o.theta, d->theta, VM_MAX_DOF);
+  copy_vec(o.theta_star, d->theta_star, VM_MAX_DOF);
+  copy_vec(o.error, d->error, 6);
+  copy_vec(o.error_dot, d->error_dot, 6);
+  copy_vec(o.error_star, d->error_star, 6);
+  copy_vec(o.error_star_dot, d->error_star_dot, 6);
+  pose_to(o.handle_pose, d->handle_pose);
+  pose_to(o.mechanism_pose, d->mechanism_pose);
+  pose_to(o.mechanism_pose_star, d->mechanism_pose_star);
+  d->residual = o.residual;
+  d->residual_star = o.residual_star;
+  d->iterations = o.iterations;
+  d->iterations_star = o.iterations_star;
+  d->active = o.active;
+  d->active_star = o.active_star;
+  d->ramp = o.ramp;
+  d->limit_scale = o.limit_scale;
+  d->energy = o.energy;
+  copy_vec(o.wrench_passivity, d->wrench_passivity, 6);
+  d->passivity_scale = o.passivity_scale;
+  d->status = o.status;
+  d->computation_time_us = o.computation_time_us;
+}
+
+// Zeroes tau[0..n) for a call the cycle cannot run (NULL pointers, a wrong n).
+void zero_torque(double* tau, int n) {
+  if (tau) for (int i = 0; i < n; ++i) tau[i] = 0.0;
+}
+
 }  // namespace
 
 extern "C" {
@@ -311,6 +463,7 @@ void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type) {
   desc->length_scale = 0.1;
   if (type == VM_MECHANISM_LINE_GUIDE) desc->direction[0] = 1.0;  // PlanarArm: automatic
   init_chain(desc->chain);
+  desc->shape = nullptr;
 }
 
 void vm_settings_init(vm_settings* s) {
@@ -337,33 +490,19 @@ void vm_settings_init(vm_settings* s) {
 int vm_controller_create(const vm_device_desc* device, const vm_mechanism_desc* mechanism,
                          const vm_settings* settings, vm_controller** out, char* error,
                          size_t error_size) {
-  if (!out) {
-    write_error(error, error_size, "out: expected a pointer to receive the controller, got NULL");
-    return VM_ERROR_ARGUMENT;
-  }
-  *out = nullptr;
-  if (!device || !mechanism) {
-    write_error(error, error_size, "device/mechanism: expected descriptions, got NULL");
-    return VM_ERROR_ARGUMENT;
-  }
-  try {
+  return create_into(out, "controller", error, error_size, [&] {
+    if (!device || !mechanism) {
+      throw std::invalid_argument("device/mechanism: expected descriptions, got NULL");
+    }
     vm_settings defaults;
     vm_settings_init(&defaults);
     auto dev = in_c_terms("device", *device, device_from);
     auto mech = in_c_terms("mechanism", *mechanism, mechanism_from);
     // the settings are checked against the device and mechanism by the controller itself
-    *out = in_c_terms("settings", settings ? *settings : defaults, [&](const vm_settings& s) {
+    return in_c_terms("settings", settings ? *settings : defaults, [&](const vm_settings& s) {
       return new vm_controller(dev, mech, settings_from(s));
     });
-    write_error(error, error_size, "");
-    return VM_OK;
-  } catch (const std::invalid_argument& e) {
-    write_error(error, error_size, e.what());
-    return VM_ERROR_ARGUMENT;
-  } catch (const std::exception& e) {
-    write_error(error, error_size, e.what());
-    return VM_ERROR_INTERNAL;
-  }
+  });
 }
 
 void vm_controller_destroy(vm_controller* controller) { delete controller; }
@@ -373,7 +512,7 @@ int vm_controller_dof(const vm_controller* c) { return c ? c->controller.device(
 uint32_t vm_controller_step(vm_controller* c, const double* q, const double* dq, int n,
                             double t_s, double* tau) {
   if (!c || !q || !dq || n != c->controller.device().dof()) {
-    if (tau) for (int i = 0; i < n; ++i) tau[i] = 0.0;
+    zero_torque(tau, n);
     if (!c) return VM_STATUS_FAULT_BAD_SIZE;
     // through the controller, so that it ramps in again once the calls are right
     const Eigen::Map<const Eigen::VectorXd> none(nullptr, 0);
@@ -390,36 +529,170 @@ void vm_controller_reset(vm_controller* c) {
 
 void vm_controller_diagnostics(const vm_controller* c, vm_diagnostics* d) {
   if (!c || !d) return;
-  const CycleOutput& o = c->out;
-  d->device_dof = c->controller.device().dof();
-  d->mechanism_dof = c->controller.mechanism().dof();
-  copy_vec(o.torque, d->torque, VM_MAX_DOF);
-  copy_vec(o.wrench, d->wrench, 6);
-  copy_vec(o.wrench_null, d->wrench_null, 6);
-  copy_vec(o.wrench_range, d->wrench_range, 6);
-  copy_vec(o.wrench_unrendered, d->wrench_unrendered, 6);
-  copy_vec(o.theta, d->theta, VM_MAX_DOF);
-  copy_vec(o.theta_star, d->theta_star, VM_MAX_DOF);
-  copy_vec(o.error, d->error, 6);
-  copy_vec(o.error_dot, d->error_dot, 6);
-  copy_vec(o.error_star, d->error_star, 6);
-  copy_vec(o.error_star_dot, d->error_star_dot, 6);
-  pose_to(o.handle_pose, d->handle_pose);
-  pose_to(o.mechanism_pose, d->mechanism_pose);
-  pose_to(o.mechanism_pose_star, d->mechanism_pose_star);
-  d->residual = o.residual;
-  d->residual_star = o.residual_star;
-  d->iterations = o.iterations;
-  d->iterations_star = o.iterations_star;
+  copy_diagnostics(c->out, c->controller.device().dof(), c->controller.mechanism().dof(), d);
+}
+
+// ---- shapes ------------------------------------------------------------------------------
+
+int vm_nurbs_curve_create(const double* control_points, const double* weights, int n,
+                          const double* knots, int degree, vm_shape** out, char* error,
+                          size_t error_size) {
+  return create_into(out, "shape", error, error_size, [&] {
+    require_count("n", n, 1, "control point");
+    require_degree("degree", degree);
+    require_array("control_points", control_points, "n x 3");
+    require_array("weights", weights, "n");
+    require_array("knots", knots, "n + degree + 1");
+    auto curve = std::make_shared<NurbsCurve>(RowPoints(control_points, n, 3),
+                                              Values(weights, n), Values(knots, n + degree + 1),
+                                              degree);
+    return new vm_shape{std::move(curve), nullptr};
+  });
+}
+
+int vm_nurbs_surface_create(const double* control_points, const double* weights, int nu,
+                            int nv, const double* knots_u, const double* knots_v, int degree_u,
+                            int degree_v, vm_shape** out, char* error, size_t error_size) {
+  return create_into(out, "shape", error, error_size, [&] {
+    require_count("nu", nu, 1, "control point");
+    require_count("nv", nv, 1, "control point");
+    require_degree("degree_u", degree_u);
+    require_degree("degree_v", degree_v);
+    require_array("control_points", control_points, "nu * nv x 3");
+    require_array("weights", weights, "nu * nv");
+    require_array("knots_u", knots_u, "nu + degree_u + 1");
+    require_array("knots_v", knots_v, "nv + degree_v + 1");
+    using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const Eigen::MatrixXd W = Eigen::Map<const RowMatrix>(weights, nu, nv);
+    auto surface = std::make_shared<NurbsSurface>(
+        RowPoints(control_points, static_cast<Eigen::Index>(nu) * nv, 3), W,
+        Values(knots_u, nu + degree_u + 1), Values(knots_v, nv + degree_v + 1), degree_u,
+        degree_v);
+    return new vm_shape{nullptr, std::move(surface)};
+  });
+}
+
+int vm_sphere_create(const double center[3], double radius, const double axis[3],
+                     vm_shape** out, char* error, size_t error_size) {
+  return create_into(out, "shape", error, error_size, [&] {
+    require_array("center", center, "3");
+    auto sphere = std::make_shared<Sphere>(v3(center), radius,
+                                           axis ? v3(axis) : Eigen::Vector3d::UnitZ());
+    return new vm_shape{nullptr, std::move(sphere)};
+  });
+}
+
+int vm_cylinder_create(const double point[3], const double direction[3], double radius,
+                       vm_shape** out, char* error, size_t error_size) {
+  return create_into(out, "shape", error, error_size, [&] {
+    require_array("point", point, "3");
+    require_array("direction", direction, "3");
+    auto cylinder = std::make_shared<Cylinder>(v3(point), v3(direction), radius);
+    return new vm_shape{nullptr, std::move(cylinder)};
+  });
+}
+
+int vm_plane_create(const double point[3], const double normal[3], vm_shape** out, char* error,
+                    size_t error_size) {
+  return create_into(out, "shape", error, error_size, [&] {
+    require_array("point", point, "3");
+    require_array("normal", normal, "3");
+    return new vm_shape{nullptr, std::make_shared<Plane>(v3(point), v3(normal))};
+  });
+}
+
+void vm_shape_destroy(vm_shape* shape) { delete shape; }
+
+// ---- mechanism sets ----------------------------------------------------------------------
+
+void vm_set_settings_init(vm_set_settings* s) {
+  const MechanismSetSettings d;
+  s->snap_distance = d.snap_distance;
+  s->release_distance = d.release_distance;
+  s->force_rate = d.force_rate;
+  s->moment_rate = d.moment_rate;
+  s->period_s = d.period_s;
+}
+
+int vm_mechanism_set_create(const vm_device_desc* device, int capacity,
+                            const vm_set_settings* settings, vm_mechanism_set** out,
+                            char* error, size_t error_size) {
+  return create_into(out, "mechanism set", error, error_size, [&] {
+    if (!device) throw std::invalid_argument("device: expected a description, got NULL");
+    auto dev = in_c_terms("device", *device, device_from);
+    MechanismSetSettings s;
+    if (settings) {
+      s.snap_distance = settings->snap_distance;
+      s.release_distance = settings->release_distance;
+      s.force_rate = settings->force_rate;
+      s.moment_rate = settings->moment_rate;
+      s.period_s = settings->period_s;
+    }
+    try {
+      return new vm_mechanism_set(dev, capacity, s);
+    } catch (const std::invalid_argument& e) {
+      // the set names capacity (a parameter) or a settings field
+      if (std::strncmp(e.what(), "capacity:", 9) == 0) throw;
+      throw std::invalid_argument(std::string("settings.") + e.what());
+    }
+  });
+}
+
+int vm_mechanism_set_add(vm_mechanism_set* set, const vm_mechanism_desc* mechanism,
+                         const vm_settings* settings, char* error, size_t error_size) {
+  return c_call(error, error_size, [&] {
+    if (!set) throw std::invalid_argument("set: expected a mechanism set, got NULL");
+    if (!mechanism) throw std::invalid_argument("mechanism: expected a description, got NULL");
+    vm_settings defaults;
+    vm_settings_init(&defaults);
+    auto mech = in_c_terms("mechanism", *mechanism, mechanism_from);
+    const Controller member =
+        in_c_terms("settings", settings ? *settings : defaults, [&](const vm_settings& s) {
+          return Controller(set->device, mech, settings_from(s));
+        });
+    return set->set.add(member);  // "member: the set is full (capacity ...)"
+  });
+}
+
+void vm_mechanism_set_destroy(vm_mechanism_set* set) { delete set; }
+
+int vm_mechanism_set_dof(const vm_mechanism_set* set) { return set ? set->set.device().dof() : 0; }
+
+uint32_t vm_mechanism_set_step(vm_mechanism_set* set, const double* q, const double* dq, int n,
+                               double t_s, double* tau) {
+  if (!set || !q || !dq || n != set->set.device().dof()) {
+    zero_torque(tau, n);
+    if (!set) return VM_STATUS_FAULT_BAD_SIZE;
+    // through the set with a non-finite joint state, so that every member faults (and ramps
+    // in again once the calls are right); reported as the bad call it is
+    static constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+    static constexpr double kNone[VM_MAX_DOF] = {kNan, kNan, kNan, kNan, kNan, kNan, kNan, kNan};
+    set->set.step(kNone, kNone, set->out, t_s);
+    set->out.cycle.status =
+        (set->out.cycle.status & ~status::kFaultNonFiniteInput) | status::kFaultBadSize;
+    return set->out.cycle.status;
+  }
+  const uint32_t s = set->set.step(q, dq, set->out, t_s);
+  if (tau) for (int i = 0; i < n; ++i) tau[i] = set->out.cycle.torque[i];
+  return s;
+}
+
+void vm_mechanism_set_reset(vm_mechanism_set* set) {
+  if (set) set->set.reset();
+}
+
+void vm_mechanism_set_diagnostics(const vm_mechanism_set* set, vm_set_diagnostics* d) {
+  if (!set || !d) return;
+  const MechanismSetOutput& o = set->out;
+  // the member whose cycle o.cycle is: the rendered one, else member 0
+  const int shown = o.active >= 0 ? o.active : 0;
+  const int mechanism_dof = shown < set->set.size() ? set->set.member(shown).mechanism().dof() : 0;
+  copy_diagnostics(o.cycle, set->set.device().dof(), mechanism_dof, &d->cycle);
   d->active = o.active;
-  d->active_star = o.active_star;
-  d->ramp = o.ramp;
-  d->limit_scale = o.limit_scale;
-  d->energy = o.energy;
-  copy_vec(o.wrench_passivity, d->wrench_passivity, 6);
-  d->passivity_scale = o.passivity_scale;
-  d->status = o.status;
-  d->computation_time_us = o.computation_time_us;
+  d->size = o.size;
+  for (int i = 0; i < VM_MAX_SET_MEMBERS; ++i) d->distance[i] = o.distance[static_cast<size_t>(i)];
+  d->contact = o.contact;
+  d->switching = o.switching ? 1 : 0;
 }
 
 const char* vm_version(void) { return VIRTMECH_VERSION_STRING; }

@@ -342,6 +342,57 @@ TEST(Allocation, CApiStepAndDiagnosticsAllocateNothing) {
   }
 }
 
+namespace vmtest {
+// defined in test_c_api_shapes.cpp: shapes from the C arrays of the test patch and letter,
+// make_set() built through the C API
+vm_shape* c_nurbs_surface(const NurbsSurface& surface);
+vm_mechanism_set* c_make_set(int capacity);
+}  // namespace vmtest
+
+TEST(Allocation, CApiShapeProbeAndSetStepAndDiagnosticsAllocateNothing) {
+  // a SurfaceProbe on the NURBS test patch (its shape released at once) and the set of four,
+  // both through the C API; the cycles include a reset and a call with a wrong n
+  vm_device_desc dev;
+  vm_device_desc_init(&dev, VM_DEVICE_PHANTOM_OMNI);
+  vm_shape* patch = c_nurbs_surface(*test_patch(Eigen::Vector3d(0, 0, -0.12)));
+  vm_mechanism_desc mech;
+  vm_mechanism_desc_init(&mech, VM_MECHANISM_SURFACE_PROBE);
+  mech.shape = patch;
+  vm_controller* c = nullptr;
+  char err[256];
+  ASSERT_EQ(vm_controller_create(&dev, &mech, nullptr, &c, err, sizeof err), VM_OK) << err;
+  vm_shape_destroy(patch);
+  vm_mechanism_set* set = c_make_set(4);
+  JointVector q = JointVector::Zero(6), dq = JointVector::Zero(6);
+  double tau[6] = {0, 0, 0, 0, 0, 0}, set_tau[6] = {0, 0, 0, 0, 0, 0};
+  vm_diagnostics diag{};
+  vm_set_diagnostics set_diag{};
+  const int cycles = kCycles / 5;  // the set steps four NURBS members a cycle
+  start_heap_count();
+  for (int k = 0; k < cycles; ++k) {
+    joint_state(k, q, dq);
+    if (k == cycles / 2) {
+      vm_controller_reset(c);
+      vm_mechanism_set_reset(set);
+    }
+    const int n = k == cycles / 4 ? 5 : 6;
+    vm_controller_step(c, q.data(), dq.data(), n, k * 1e-3, tau);
+    vm_controller_diagnostics(c, &diag);
+    vm_mechanism_set_step(set, q.data(), dq.data(), n, k * 1e-3, set_tau);
+    vm_mechanism_set_diagnostics(set, &set_diag);
+  }
+  const HeapCount n = stop_heap_count();
+  EXPECT_EQ(n.allocations, 0);
+  EXPECT_EQ(n.frees, 0);
+  EXPECT_EQ(n.news, 0);
+  EXPECT_EQ(diag.status & VM_STATUS_FAULT_MASK, 0u);
+  EXPECT_EQ(set_diag.cycle.status & VM_STATUS_FAULT_MASK, 0u);
+  EXPECT_EQ(set_diag.size, 4);
+  for (double x : set_tau) EXPECT_TRUE(std::isfinite(x));
+  vm_controller_destroy(c);
+  vm_mechanism_set_destroy(set);
+}
+
 // --- the cycle's calls cannot throw (checked when this file compiles) ---------------
 
 TEST(Realtime, CycleCallsAreNoexcept) {
