@@ -89,6 +89,7 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
     out.cycle.status = status::kOk;
     out.active = -1;
     out.switching = false;
+    last_ = out;
     return status::kOk;
   }
   std::uint32_t faults = 0;
@@ -134,6 +135,7 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
     wrench_.setZero();
     switching_ = false;
     out.switching = false;
+    last_ = out;
     return out.cycle.status;
   }
   if (active_ < 0) {
@@ -177,6 +179,7 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
   }
   wrench_ = out.cycle.wrench;
   out.switching = switching_;
+  last_ = out;
   return out.cycle.status;
 }
 

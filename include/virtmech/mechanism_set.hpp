@@ -77,6 +77,8 @@ class MechanismSet {
   const Controller& member(int i) const { return *members_.at(static_cast<size_t>(i)); }
   const MechanismSetSettings& settings() const noexcept { return settings_; }
   int active() const noexcept { return active_; }
+  /// The last cycle's output.
+  const MechanismSetOutput& last() const noexcept { return last_; }
 
  private:
   std::shared_ptr<const Device> device_;
@@ -87,6 +89,7 @@ class MechanismSet {
   int active_ = -1;
   bool switching_ = false;
   Vector6 wrench_ = Vector6::Zero();  // the wrench output last cycle
+  MechanismSetOutput last_;
 };
 
 }  // namespace virtmech

@@ -1187,6 +1187,11 @@ NB_MODULE(_core, m) {
       .def_prop_ro("size", &MechanismSet::size)
       .def_prop_ro("capacity", &MechanismSet::capacity)
       .def_prop_ro("active", &MechanismSet::active)
+      .def_prop_ro("last", [](const MechanismSet& s) { return s.last(); },
+                   "The last cycle's MechanismSetOutput.")
+      .def_prop_ro("device", [](const MechanismSet& s) {
+        return std::const_pointer_cast<Device>(s.member(0).device_ptr());
+      })
       .def("member", [](const MechanismSet& s, int i) {
         if (i < 0 || i >= s.size()) {
           throw nb::index_error(("i: expected 0 <= i < " + std::to_string(s.size()) + ", got " +

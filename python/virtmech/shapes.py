@@ -59,3 +59,18 @@ def shape_from_dict(d: dict[str, Any]):
     if t in ("Sphere", "Cylinder", "Plane"):
         return getattr(vm, t)(**kw)
     raise ValueError(f"type: expected one of {', '.join(SURFACES + CURVES)}, got {t!r}")
+
+
+def surface_grid(surface, count: int = 24, unbounded: float = 0.1) -> np.ndarray:
+    """Points of a surface on a count x count grid of its parameters, (count, count, 3); an
+    unbounded parameter over +-`unbounded` (metres for a plane or a cylinder's axis)."""
+    lo, hi = np.asarray(surface.lower, float), np.asarray(surface.upper, float)
+    lo = np.where(np.isfinite(lo), lo, -unbounded)
+    hi = np.where(np.isfinite(hi), hi, unbounded)
+    us, vs = np.linspace(lo[0], hi[0], count), np.linspace(lo[1], hi[1], count)
+    return np.array([[surface.evaluate(u, v) for v in vs] for u in us])
+
+
+def curve_points(curve, count: int = 200) -> np.ndarray:
+    """count points of a curve evenly in its parameter, (count, 3)."""
+    return np.array([curve.evaluate(u) for u in np.linspace(curve.lower, curve.upper, count)])

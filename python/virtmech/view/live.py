@@ -41,6 +41,7 @@ from ..sim.loop import (
     log_columns,
     make_device,
     make_mechanism,
+    make_set,
     versions,
 )
 from ..sim.model import HandBody, build_mjcf, compile_model, world_gravity
@@ -137,6 +138,8 @@ class LiveSim:
         )
         self.T = float(S["controller"]["period_s"])
         self.n, self.m = self.device.dof, self.mech.dof
+        for mm in (S.get("set") or {}).get("members") or []:  # the widest member's theta
+            self.m = max(self.m, make_mechanism(mm).dof)
         human = HandImpedance(**{k: S["human"][k] for k in HandImpedance().to_dict()})
         self.human = human
         self.phys = device_physics(S["device"])
@@ -189,6 +192,8 @@ class LiveSim:
         )
         self.sensor_settings = SensorSettings(**sens)
         self.ctrl = ctrl
+        # a scenario with [[set.members]] renders a MechanismSet (member 0: the [mechanism])
+        self.renderer = make_set(S, self.device, ctrl)
         self._make_loop()
 
         self.k = 0  # control cycles run since the start (or the last reset)
@@ -206,12 +211,17 @@ class LiveSim:
     # -------------------------------------------------------------------------------------
     # building
 
+    def _last(self):
+        """The last cycle's CycleOutput (a set's: the member rendered)."""
+        last = self.renderer.last
+        return getattr(last, "cycle", last)
+
     def _make_loop(self) -> None:
         act_idx = np.flatnonzero(np.asarray(self.device.actuated, dtype=bool))
         comp = self.comp_bodies if self.grav_comp else []
         self.sensors = Sensors(self.sensor_settings, self.n, self.T, self.rng)
         self.servo = inner.ServoLoop(
-            controller=self.ctrl,
+            controller=self.renderer,
             model=self.model,
             data=self.data,
             coupling_inv=self.Cinv,
@@ -254,6 +264,11 @@ class LiveSim:
             )
             ctrl = vm.Controller(self.device, self.mech, **kw)
             self.ctrl = ctrl
+            self.renderer = make_set(
+                {**self.scenario.data, "controller": {**self.scenario.data["controller"], **kw}},
+                self.device,
+                ctrl,
+            )
             self.sensor_settings = SensorSettings(
                 **{**self.sensor_settings.to_dict(), "delay_cycles": int(settings.delay_cycles)}
             )
@@ -306,7 +321,7 @@ class LiveSim:
         work = np.cumsum(np.einsum("ij,ij->i", W, tw)) * self.T + self.work_j
         self.work_j = float(work[-1])
         snap = self._snap(rows)
-        last = self.ctrl.last
+        last = self._last()
         tank = float(last.energy) if self.settings.passivity else math.nan
         sel = np.flatnonzero((self.k - n + np.arange(n)) % self.HISTORY_STRIDE == 0)
         with self.lock:
@@ -359,7 +374,7 @@ class LiveSim:
             wn = r[c["f_null0"] : c["f_null0"] + 6]
             wr = r[c["f_range0"] : c["f_range0"] + 6]
             dist = float(r[c["dist"]])
-            last = self.ctrl.last
+            last = self._last()
             status = list(last.status_names)
             T_m, T_ms = np.asarray(last.mechanism_pose), np.asarray(last.mechanism_pose_star)
             theta = r[c["theta0"] : c["theta0"] + self.m]

@@ -84,11 +84,13 @@ def up_of(model) -> np.ndarray:
 class Scene:
     """The scene nodes of one device and mechanism; `update(frame)` moves them."""
 
-    def __init__(self, server, model, mechanism, mech_dict: dict, up: np.ndarray):
+    def __init__(self, server, model, mechanism, mech_dict: dict, up: np.ndarray,
+                 members: tuple = ()):
         self.server = server
         self.model = model
         self.mech = mechanism
         self.md = mech_dict
+        self.members = list(members)  # a mechanism set's other members (their to_dict)
         self.L = float(mech_dict.get("length", 0.0) or 0.0)
         self.up = np.asarray(up, dtype=float)
         self.nodes: list = []
@@ -180,8 +182,11 @@ class Scene:
         )
 
     def _build_mechanism(self) -> None:
+        for i, md in enumerate([self.md, *self.members]):
+            self._draw_mechanism(md, "/mech" if i == 0 else f"/mech{i}")
+
+    def _draw_mechanism(self, md: dict, root: str) -> None:
         sc = self.server.scene
-        md = self.md
         kind = md.get("type")
         if kind == "PlanarArm":
             c, n = np.asarray(md["pivot"], dtype=float), _unit(md["normal"])
@@ -189,8 +194,8 @@ class Scene:
             a = np.linspace(0, 2 * math.pi, 97)
             pts = c + md["length"] * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * v)
             seg = np.stack([pts[:-1], pts[1:]], axis=1)
-            self._add(sc.add_line_segments("/mech/circle", seg, MECH_RGB, thickness=0.0012))
-            self._add(sc.add_icosphere("/mech/pivot", radius=0.003, color=MECH_RGB, position=c))
+            self._add(sc.add_line_segments(f"{root}/circle", seg, MECH_RGB, thickness=0.0012))
+            self._add(sc.add_icosphere(f"{root}/pivot", radius=0.003, color=MECH_RGB, position=c))
         elif kind == "Probe":
             c, n = np.asarray(md["plane_point"], dtype=float), _unit(md["plane_normal"])
             u, v = _basis(n)
@@ -200,7 +205,7 @@ class Scene:
             )
             self._add(
                 sc.add_mesh_simple(
-                    "/mech/plane",
+                    f"{root}/plane",
                     vertices=corners.astype(np.float32),
                     faces=np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32),
                     color=MECH_RGB,
@@ -209,14 +214,41 @@ class Scene:
                 )
             )
             edges = np.stack([corners, np.roll(corners, -1, axis=0)], axis=1)
-            self._add(sc.add_line_segments("/mech/edges", edges, MECH_RGB, thickness=0.001))
+            self._add(sc.add_line_segments(f"{root}/edges", edges, MECH_RGB, thickness=0.001))
         elif kind == "LineGuide":
             p, d = np.asarray(md["point"], dtype=float), _unit(md["direction"])
             seg = np.array([[p - 0.1 * d, p + 0.1 * d]])
-            self._add(sc.add_line_segments("/mech/line", seg, MECH_RGB, thickness=0.0015))
+            self._add(sc.add_line_segments(f"{root}/line", seg, MECH_RGB, thickness=0.0015))
         elif kind == "PointPivot":
             p = np.asarray(md["point"], dtype=float)
-            self._add(sc.add_icosphere("/mech/point", radius=0.004, color=MECH_RGB, position=p))
+            self._add(sc.add_icosphere(f"{root}/point", radius=0.004, color=MECH_RGB, position=p))
+        elif kind == "SurfaceProbe":
+            from ..shapes import shape_from_dict, surface_grid
+
+            surface = shape_from_dict(md["surface"])
+            count = 32
+            G = surface_grid(surface, count)  # (count, count, 3)
+            i, j = np.meshgrid(np.arange(count - 1), np.arange(count - 1), indexing="ij")
+            a = (i * count + j).ravel()
+            faces = np.concatenate(
+                [np.stack([a, a + count, a + count + 1], 1), np.stack([a, a + count + 1, a + 1], 1)]
+            ).astype(np.uint32)
+            self._add(
+                sc.add_mesh_simple(
+                    f"{root}/surface",
+                    vertices=G.reshape(-1, 3).astype(np.float32),
+                    faces=faces,
+                    color=MECH_RGB,
+                    opacity=0.35,
+                    side="double",
+                )
+            )
+        elif kind in ("CurveGuide", "HandlePath"):
+            from ..shapes import curve_points, shape_from_dict
+
+            pts = curve_points(shape_from_dict(md["curve"]))
+            seg = np.stack([pts[:-1], pts[1:]], axis=1)
+            self._add(sc.add_line_segments(f"{root}/curve", seg, MECH_RGB, thickness=0.0015))
 
     def remove(self) -> None:
         for h in reversed(self.nodes):

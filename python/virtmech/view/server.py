@@ -641,7 +641,12 @@ class ViewServer:
             self._scene.remove()
         sc.set_up_direction(tuple(float(v) for v in up))
         frame = self.frame()
-        self._scene = Scene(self.server, model, mech, md, up)
+        members = ()
+        if self.mode == "live":
+            members = tuple(
+                (self.sim.scenario.data.get("set") or {}).get("members") or ()
+            )
+        self._scene = Scene(self.server, model, mech, md, up, members)
         self._scene.update(frame)
         fov = FOV
         position, look_at = camera_for(model, frame, md, up, name, fov)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..shapes import curve_points, shape_from_dict, surface_grid
 from ..sim.geometry import geometry_of
 
 
@@ -154,19 +155,7 @@ def _view_line_guide(m: dict, P, tips) -> _View:
 
 
 def _shape_of(m: dict):
-    from ..shapes import shape_from_dict
-
     return shape_from_dict(m["surface"] if "surface" in m else m["curve"])
-
-
-def _surface_grid(surface, count: int = 24) -> np.ndarray:
-    """Points of a surface on a count x count grid of its parameters (count, count, 3); an
-    unbounded direction over +-0.1 (m for planes and cylinders)."""
-    lo, hi = np.asarray(surface.lower, float), np.asarray(surface.upper, float)
-    lo = np.where(np.isfinite(lo), lo, -0.1)
-    hi = np.where(np.isfinite(hi), hi, 0.1)
-    us, vs = np.linspace(lo[0], hi[0], count), np.linspace(lo[1], hi[1], count)
-    return np.array([[surface.evaluate(u, v) for v in vs] for u in us])
 
 
 def _view_surface_probe(m: dict, P, tips) -> _View:
@@ -177,7 +166,7 @@ def _view_surface_probe(m: dict, P, tips) -> _View:
     u = _spread_axis(tips, n, None)
 
     def draw(ax, uv):
-        G = uv(_surface_grid(surface).reshape(-1, 3))
+        G = uv(surface_grid(surface).reshape(-1, 3))
         ax.plot(G[:, 0], G[:, 1], ls="none", marker=".", ms=1.5, color="0.6",
                 label="the surface (its points, seen from the side)")
 
@@ -190,7 +179,7 @@ def _view_curve(m: dict, P, tips) -> _View:
     u, v, _ = plane_basis(m.get("normal", [0.0, 0.0, 1.0]))
 
     def draw(ax, uv):
-        C = uv(np.array([curve.evaluate(x) for x in np.linspace(curve.lower, curve.upper, 400)]))
+        C = uv(curve_points(curve, 400))
         ax.plot(C[:, 0], C[:, 1], ls="--", color="0.45", lw=1.2, label="the curve")
         ax.plot(*C[0], marker="s", color="0.3", ms=5, ls="none", label="its ends (stops)")
         ax.plot(*C[-1], marker="s", color="0.3", ms=5, ls="none")
@@ -818,12 +807,12 @@ def scene_figure(result, path: str | Path, max_points: int | None = None,
     fig = plt.figure(figsize=(7.0, 6.0), dpi=110)
     ax = fig.add_subplot(projection="3d")
     if "surface" in mech:
-        G = _surface_grid(shape, 20)
+        G = surface_grid(shape, 20)
         ax.plot_wireframe(G[..., 0], G[..., 1], G[..., 2], color="0.6", lw=0.5,
                           label="the surface")
         touching = result.col("dist_normal") <= 0.0
     else:
-        C = np.array([shape.evaluate(x) for x in np.linspace(shape.lower, shape.upper, 300)])
+        C = curve_points(shape, 300)
         ax.plot(C[:, 0], C[:, 1], C[:, 2], color="0.35", ls="--", lw=1.2, label="the curve")
         touching = result.col("dist") <= 1e-3
     ax.plot(P[:, 0], P[:, 1], P[:, 2], color="0.3", lw=0.8, label="handle path")
