@@ -264,10 +264,16 @@ def test_surface_probe_on_the_omni(kind):
     for q, T in poses:
         n = -T[:3, 2]
         for unilateral in (False, True):
-            out = render(omni, q, vm.SurfaceProbe(surface_contact(kind, T, DEPTH), L, unilateral))
+            s = surface_contact(kind, T, DEPTH)
+            out = render(omni, q, vm.SurfaceProbe(s, L, unilateral))
             f = np.asarray(out.wrench[:3])
             assert f @ n == pytest.approx(KP * DEPTH, rel=0.05), (q, unilateral)
             assert np.linalg.norm(f - (f @ n) * n) <= 1e-6
+            # both placements hold the tip on the surface (the un-powered one with the
+            # handle's stylus: where the user's tip is rendered)
+            for P in (np.asarray(out.mechanism_pose), np.asarray(out.mechanism_pose_star)):
+                tip = P[:3, 3] + L * P[:3, 2]
+                assert np.linalg.norm(tip - s.closest_point(tip)[1]) < 1e-9
         lifted = render(omni, q, vm.SurfaceProbe(surface_contact(kind, T, -DEPTH), L, True))
         assert np.abs(lifted.wrench).max() <= 1e-9
 
