@@ -132,8 +132,10 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
     out.cycle.torque.setZero(device_->dof());
     out.cycle.wrench.setZero();
     out.cycle.status |= faults;
+    // the force comes back from zero at the set's rates once the input clears, whatever
+    // the members' own ramp-in (a member that faulted alone does not ramp at all)
     wrench_.setZero();
-    switching_ = false;
+    switching_ = true;
     out.switching = false;
     last_ = out;
     return out.cycle.status;

@@ -5,7 +5,8 @@
 // unilateral member's distance is its tip's height above its surface, zero in contact, so it
 // engages on contact at the latest. When the rendered member changes, the output wrench
 // moves from the old one to the new one at no more than a set rate, so that switching never
-// steps the force. docs/theory.md, section 7.
+// steps the force; after a fault the force comes back from zero at the same rate.
+// docs/theory.md, section 7.
 #pragma once
 
 #include <array>
@@ -41,7 +42,7 @@ struct MechanismSetOutput {
   /// device); for a unilateral member out of contact its tip's height, in contact 0.
   std::array<double, kMaxSetMembers> distance{};
   std::uint32_t contact = 0;  //!< bit i: member i is unilateral and in contact
-  bool switching = false;     //!< the output is moving from one member's force to another's
+  bool switching = false;     //!< the output is moving from one member's force to another's, or back from a fault
 };
 
 class MechanismSet {

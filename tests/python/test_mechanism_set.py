@@ -171,3 +171,25 @@ def test_an_empty_set_commands_nothing_and_a_fault_zeroes_the_torque():
     out = s.step(bad, np.zeros(6))
     assert np.all(out.torque == 0.0)
     assert "fault_nonfinite_input" in out.status_names
+
+
+def test_after_a_fault_the_force_comes_back_at_the_set_rate():
+    # the members ramp in over one cycle (ramp_time_s = 0): without the set's own blend the
+    # Kp 2 mm = 2.4 N of the engaged guide would come back in one step after the fault
+    dev = cartesian_device()
+    s = make_set(dev)
+    for _ in range(300):  # engaged, and blended in at 20 N/s
+        s.step(q_tip(-0.002), np.zeros(6))
+    held = np.array(s.last.wrench)
+    assert np.linalg.norm(held[:3]) == pytest.approx(KP * 0.002, rel=0.05)
+    bad = q_tip(-0.002)
+    bad[0] = np.nan
+    s.step(bad, np.zeros(6))
+    previous = np.zeros(3)
+    for k in range(400):
+        out = s.step(q_tip(-0.002), np.zeros(6))
+        f = np.array(out.wrench)[:3]
+        assert np.linalg.norm(f - previous) <= FORCE_RATE * DT + 1e-12, k
+        previous = f
+    # and it does come back in full
+    np.testing.assert_allclose(previous, held[:3], atol=1e-9)
