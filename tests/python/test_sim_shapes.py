@@ -139,3 +139,8 @@ def test_snapping_between_two_guides_follows_the_hysteresis_and_the_rate():
     assert step.max() <= st["force_rate"] * S["controller"]["period_s"] + 1e-9
     # and the tip ends on guide 0, held there
     assert line_distance(X[-100:], lines[0]).max() < 1e-3
+    # the log's distance is the rendered guide's, and with none rendered the nearer one's
+    both = np.stack([line_distance(X, p) for p in lines])
+    expected = np.where(member >= 0, both[np.maximum(member, 0), np.arange(len(X))],
+                        both.min(axis=0))
+    np.testing.assert_allclose(run.col("dist"), expected, atol=1e-12)

@@ -31,7 +31,7 @@ import virtmech as vm
 from ..shapes import shape_from_dict
 from . import inner
 from .geometry import COLUMNS as DIST_COLUMNS
-from .geometry import distances
+from .geometry import distances, geometry_of
 from .grip import finger_forces_batch
 from .human import HandImpedance, Intent
 from .model import (
@@ -489,7 +489,8 @@ UNITS = {
     "ax": "m (hand anchor)",
     "segment": "intent segment index",
     "member": "mechanism rendered: 0 the [mechanism], i the set's i-th (-1: none)",
-    "dist": "m (distance from where the mechanism allows; sim.geometry)",
+    "dist": "m (distance from where the mechanism allows; sim.geometry; a set's run: the "
+    "rendered member's, with none the nearest member's)",
     "dist_signed": "m (signed distance from the mechanism's path or surface; sim.geometry)",
     "dist_normal": "m (part along the mechanism's normal; sim.geometry)",
     "dist_across": "m (the rest; sim.geometry)",
@@ -532,9 +533,33 @@ class _PostColumns:
     """Fills the columns that follow from the logged state alone (the distance from the
     path, the PlanarArm angles, the grip) in a block of rows."""
 
-    def __init__(self, columns: list[str], mechanism: dict, planar, contacts):
+    def __init__(self, columns: list[str], mechanisms: list[dict], planar, contacts):
         self.c = {name: i for i, name in enumerate(columns)}
-        self.mechanism, self.planar, self.contacts = mechanism, planar, contacts
+        self.mechanisms, self.planar, self.contacts = mechanisms, planar, contacts
+
+    def _distances(self, log: np.ndarray, p_h: np.ndarray, z_h: np.ndarray) -> np.ndarray:
+        """The distance columns (rows x 4): the mechanism's; in a set's run the rendered
+        member's, and with none rendered the nearest member's (the one a snap would take).
+        A member without a geometry (its distance is the nearest placement's error, logged
+        for the rendered member, or member 0 with none) counts only on its own rows."""
+        c = self.c
+        e_pos = log[:, c["e0"] : c["e0"] + 3]
+        if len(self.mechanisms) == 1:
+            return distances(self.mechanisms[0], p_h, z_h, e_pos).columns()
+        member = log[:, c["member"]].astype(int)
+        logged = np.where(member >= 0, member, 0)  # whose errors the e columns are
+        each = np.stack([distances(m, p_h, z_h, e_pos).columns() for m in self.mechanisms])
+        for i, m in enumerate(self.mechanisms):
+            if geometry_of(m) is None:
+                each[i, logged != i] = np.nan
+        rows = np.arange(len(log))
+        d = each[:, :, 0]  # members x rows: dist
+        finite = np.isfinite(d)
+        nearest = np.where(finite, d, np.inf).argmin(axis=0)
+        pick = np.where(member >= 0, member, nearest)
+        out = each[pick, rows]
+        out[(member < 0) & ~finite.any(axis=0)] = np.nan
+        return out
 
     def __call__(self, log: np.ndarray) -> None:
         c = self.c
@@ -544,11 +569,10 @@ class _PostColumns:
             _, a_pos, a_sty = self.planar.measure_batch(p_h, z_h)
         else:
             a_pos = a_sty = np.full(len(log), math.nan)
-        d = distances(self.mechanism, p_h, z_h, log[:, c["e0"] : c["e0"] + 3])
         _, F1, _, F2, mz = finger_forces_batch(
             p_h, z_h, log[:, c["fx"] : c["fx"] + 6], self.contacts
         )
-        log[:, c["dist"] : c["dist"] + len(DIST_COLUMNS)] = d.columns()
+        log[:, c["dist"] : c["dist"] + len(DIST_COLUMNS)] = self._distances(log, p_h, z_h)
         log[:, c["arm_pos_angle"]] = a_pos
         log[:, c["arm_stylus_angle"]] = a_sty
         log[:, c["ff1x"] : c["ff1x"] + 3] = F1
@@ -710,7 +734,7 @@ def run(
         hand_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "hand"),
         log_columns=columns,
     )
-    post = _PostColumns(columns, mech.to_dict(), planar, contacts)
+    post = _PostColumns(columns, members or [mech.to_dict()], planar, contacts)
 
     # stretches of cycles: split where a segment starts (the hand's plan needs the handle's
     # pose there), every 1000 cycles (progress) and at the ends of the blocks
