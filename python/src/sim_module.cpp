@@ -176,6 +176,9 @@ NB_MODULE(_sim, m) {
            "{field: column}.")
       .def_prop_ro("log_columns", [](const PyServoLoop& s) { return s.loop.log_layout().columns; })
       .def_prop_ro("hand_attached", [](const PyServoLoop& s) { return s.loop.hand_attached(); })
+      .def_prop_ro("control_time_s",
+                   [](const PyServoLoop& s) { return s.loop.control_time_s(); },
+                   "wall time in the controller's (or set's) step since construction [s]")
       .def("run", &PyServoLoop::run, "k0"_a, "plan"_a, "noise"_a, "dropout"_a,
            "log"_a.noconvert(),
            "Runs plan.shape[0] control cycles from cycle k0, writing one log row each.");

@@ -3,6 +3,7 @@
 
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <mutex>
 #include <stdexcept>
@@ -269,12 +270,15 @@ void ServoLoop::cycle(long k, const double* plan, const double* noise, bool drop
 
 void ServoLoop::control(double t, const double* noise, bool dropout) {
   sense(noise, dropout);
+  const auto t0 = std::chrono::steady_clock::now();
   if (ctrl_) {
     ctrl_->step(received_.data(), dqf_.data(), out_, t);
   } else {
     set_->step(received_.data(), dqf_.data(), set_out_, t);
-    out_ = set_out_.cycle;
   }
+  control_time_s_ +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!ctrl_) out_ = set_out_.cycle;
   cmd_ = out_.torque;
   if (!s_.comp_bodies.empty()) {
     // gravity through the motors: -C^T sum_b J_com,b^T m_b g (kinematics from mj_step1)

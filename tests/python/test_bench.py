@@ -109,14 +109,20 @@ def test_main_rejects_a_bad_cycle_count():
 
 
 def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
-    # a stand-in simulation: 2 s simulated in 0.07, 0.04 and 0.05 s of wall time
+    # a stand-in simulation: 2 s simulated (2001 cycles) in 0.07, 0.04 and 0.05 s of wall
+    # time, of which 0.02, 0.01 and 0.015 s in the controller
     scen = types.ModuleType("virtmech.scenarios")
     scen.names = lambda: ["omni_probe_table"]
     scen.load = lambda name: {"name": name}
     sim = types.ModuleType("virtmech.sim")
-    walls = iter([0.07, 0.04, 0.05])
-    sim.run = lambda scenario, seed=None, progress=False: types.SimpleNamespace(
-        sim_time_s=2.0, wall_time_s=next(walls), info={"physics": {"engine": "compiled"}})
+    walls = iter([(0.07, 0.02), (0.04, 0.01), (0.05, 0.015)])
+
+    def run(scenario, seed=None, progress=False):
+        wall, control = next(walls)
+        return types.SimpleNamespace(sim_time_s=2.0, wall_time_s=wall, control_time_s=control,
+                                     n_cycles=2001, info={"physics": {"engine": "compiled"}})
+
+    sim.run = run
     monkeypatch.setitem(sys.modules, "virtmech.scenarios", scen)
     monkeypatch.setitem(sys.modules, "virtmech.sim", sim)
     import virtmech
@@ -126,8 +132,11 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     figures, note = bench.simulation_figures(mujoco_alone=lambda result, repeats: 0.04)
     assert note == ""
     figures[0].pop("setup_and_run_wall_time_s")  # wall time around the stand-in: not asserted
-    # the median of the three runs
+    # the median of the three runs, and that run's controller time
     assert figures == [{"scenario": "omni_probe_table", "realtime_factor": pytest.approx(40.0),
                         "sim_time_s": 2.0, "wall_time_s": 0.05, "engine": "compiled",
                         "mujoco_alone_s": 0.04, "overhead_vs_mujoco": pytest.approx(1.25),
+                        "control_time_s": pytest.approx(0.015),
+                        "control_us_per_cycle": pytest.approx(0.015 / 2001 * 1e6),
+                        "loop_overhead_vs_mujoco": pytest.approx((0.05 - 0.015) / 0.04),
                         "runs": 3}]

@@ -98,6 +98,13 @@ SEGMENTS = [
 ]
 
 
+def test_the_run_reports_its_controllers_share_of_the_wall_time():
+    s = load("omni-contact").with_overrides(duration_s=0.3)
+    r = run(s)
+    # every cycle steps the controller, which takes some time but not all of the loop's
+    assert 0.0 < r.control_time_s < r.wall_time_s
+
+
 def test_the_hand_plan_is_the_per_cycle_intent():
     arm = vm.PlanarArm([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], 0.1)
     T0 = arm.forward([0.2])

@@ -8,6 +8,8 @@ It takes what virtmech.sim.inner.ServoLoop takes and writes the same log columns
 
 from __future__ import annotations
 
+import time
+
 import mujoco
 import numpy as np
 
@@ -29,6 +31,7 @@ class PyServoLoop:
         # the hand's body: its mass and inertia zeroed while the plan says it has let go
         self.hand = int(kw.get("hand_body", -1))
         self.attached = True
+        self.control_time_s = 0.0  # wall time in the controller's step
         if self.hand > 0:
             self.hand_mass = float(model.body_mass[self.hand])
             self.hand_inertia = model.body_inertia[self.hand].copy()
@@ -54,7 +57,9 @@ class PyServoLoop:
                 if s == 0:  # sensors, controller, motors (held for the cycle)
                     T_h, q0, dq0 = T, q, dq
                     qm, dqm = self.sensors.read(q, noise[r], dropout[r] != 0.0)
+                    t0 = time.perf_counter()
                     out = self.ctrl.step(qm, dqm, t)
+                    self.control_time_s += time.perf_counter() - t0
                     cmd = out.torque.copy()
                     g_s = np.zeros(m.nv)
                     for b, mass in self.comp:  # gravity compensation

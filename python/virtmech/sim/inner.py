@@ -130,6 +130,11 @@ class ServoLoop:
         self._loop.run(k0, plan, noise, dropout, log)
 
     @property
+    def control_time_s(self) -> float:
+        """Wall time spent in the controller's (or the set's) step so far [s]."""
+        return float(self._loop.control_time_s)
+
+    @property
     def hand_attached(self) -> bool:
         """False while the hand has let go (its body's mass zeroed in the model)."""
         return bool(self._loop.hand_attached)

@@ -395,6 +395,9 @@ class SimResult:
     source: Any = None
     #: wall time spent in the sink (writing the log as it goes)
     sink_time_s: float = 0.0
+    #: of `wall_time_s`, the time spent in the controller's (or the set's) step: the
+    #: rendering itself, the rest is the simulation around it
+    control_time_s: float = 0.0
 
     def blocks(self, names, rows: int | None = None):
         """The named columns of the log, a block of rows at a time (virtmech.sim.logio)."""
@@ -805,6 +808,7 @@ def run(
         sim_time_s=(N - 1) * T_ctrl,
         wall_time_s=wall,
         sink_time_s=sink_wall,
+        control_time_s=servo.control_time_s,
         info=info,
     )
 

@@ -170,9 +170,11 @@ class LiveSim:
         self.columns = log_columns(self.n, self.m)
         self.col = {c: i for i, c in enumerate(self.columns)}
         planar = PlanarGeometry(self.mech) if S["mechanism"]["type"] == "PlanarArm" else None
-        self.post = _PostColumns(
-            self.columns, self.mech.to_dict(), planar, S["human"]["grip_contacts"]
-        )
+        # the distance columns of a set's run: the rendered member's (member 0: [mechanism])
+        members = [self.mech.to_dict()] + [
+            make_mechanism(mm).to_dict() for mm in (S.get("set") or {}).get("members") or []
+        ]
+        self.post = _PostColumns(self.columns, members, planar, S["human"]["grip_contacts"])
 
         model = ctrl.model
         self.base_kp = np.asarray(model["kp"], dtype=float)

@@ -102,6 +102,9 @@ class ServoLoop {
            const double* dropout, double* log);
 
   int dof() const noexcept { return n_; }
+  /// Wall time spent in the controller's (or the set's) step since construction [s]: the
+  /// part of the loop's time that is the rendering itself, not the simulation around it.
+  double control_time_s() const noexcept { return control_time_s_; }
   bool hand_attached() const noexcept { return attached_; }
   const PlanLayout& plan_layout() const noexcept { return plan_; }
   const LogLayout& log_layout() const noexcept { return log_; }
@@ -134,6 +137,7 @@ class ServoLoop {
   JointVector gs_, tau_g_, held_, prev_, dqf_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_,
       received_, sv_;
   long reads_ = 0;
+  double control_time_s_ = 0.0;
   bool attached_ = true;
   double hand_mass_ = 0.0, hand_inertia_[3] = {0.0, 0.0, 0.0};
   Pose pose_ = Pose::Identity();
