@@ -574,6 +574,11 @@ void Controller::restart_energy() noexcept {
   data_.have_last_torque = false;
 }
 
+void Controller::applied(const double* tau) noexcept {
+  if (!data_.have_last_torque) return;  // nothing booked next cycle (passivity off, a fault)
+  data_.last_torque = Eigen::Map<const JointVector>(tau, device_->dof());
+}
+
 std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
                                const Eigen::Ref<const Eigen::VectorXd>& dq, CycleOutput& out,
                                double t_s) noexcept {

@@ -175,6 +175,8 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
       f *= tscale;
       out.cycle.wrench = f;
       out.cycle.status |= status::kSwitching;
+      // the member's energy tank books the torque the motors hold, the blend's
+      if (active_ >= 0) members_[static_cast<size_t>(active_)]->applied(out.cycle.torque.data());
     } else {
       switching_ = false;
     }

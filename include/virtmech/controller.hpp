@@ -219,6 +219,10 @@ class Controller {
   /// Empties the energy tank and forgets the last torque, as after a fault: for a cycle
   /// whose torque was not applied (a MechanismSet's members not rendered).
   void restart_energy() noexcept;
+  /// The torque the motors really hold after the last step, when it is not the one that
+  /// step returned (a MechanismSet blending two members): the energy tank books the work of
+  /// this torque over the next cycle instead. tau: dof() entries. Does not allocate.
+  void applied(const double* tau) noexcept;
 
   const Device& device() const noexcept { return *device_; }
   const Mechanism& mechanism() const noexcept { return *mechanism_; }

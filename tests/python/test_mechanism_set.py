@@ -193,3 +193,27 @@ def test_after_a_fault_the_force_comes_back_at_the_set_rate():
         previous = f
     # and it does come back in full
     np.testing.assert_allclose(previous, held[:3], atol=1e-9)
+
+
+def test_while_blending_the_energy_tank_books_the_torque_the_motors_hold():
+    # the rendered member's tank (docs/theory.md, 8): E_k = min(E_{k-1} - tau_{k-1} . (q_k -
+    # q_{k-1}), V_k + E_max) with tau the torque the set commanded, the blend, not the
+    # member's own (which the motors never held)
+    dev = cartesian_device()
+    s = make_set(dev)
+    e_max = vm.Controller(dev, s.member(0)).model["passivity_max_energy_j"]  # the default
+    path = np.linspace(0.02, -0.01, 301)  # 0.1 m/s down onto guide 0 and 1 cm past it
+    prev = None
+    checked = 0
+    for k, z in enumerate(path):
+        v = (path[min(k + 1, len(path) - 1)] - path[max(k - 1, 0)]) / (2 * DT)
+        q = q_tip(z)
+        out = s.step(q, np.array([0, 0, v, 0, 0, 0]))
+        c = out.cycle
+        if prev is not None and prev[0] == out.active >= 0 and prev[3]:
+            booked = prev[1] - prev[2] @ (q - prev[4])
+            expected = min(booked, c.stored_energy + e_max)
+            assert c.energy == pytest.approx(expected, abs=1e-12), k
+            checked += 1
+        prev = (out.active, c.energy, np.array(out.torque), out.switching, q)
+    assert checked > 50  # the blend lasts Kp 10 mm / 20 N/s = 0.6 s: many cycles
