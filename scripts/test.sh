@@ -30,6 +30,7 @@ echo "== examples"
 build/cpp/examples/01_omni_loop_c | tail -n 3
 build/cpp/examples/01_omni_loop_cpp | tail -n 3
 build/cpp/examples/02_custom_mechanism_cpp | tail -n 3
+build/cpp/examples/surface_probe_c | tail -n 3
 .venv/bin/python examples/python/01_omni_loop.py | tail -n 3
 
 echo "== Python: ruff"
