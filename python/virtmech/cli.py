@@ -256,10 +256,15 @@ def cmd_quality(args) -> int:
 
     _require_sim("quality")
     s, errors = _set_and_duration(sc.load(args.scenario), args)
-    if s.data["mechanism"]["type"] not in ("PlanarArm", "Probe", "PointPivot", "LineGuide"):
+    if s.data["mechanism"]["type"] not in Q.QUALITY_MECHANISMS:
         errors.append(
             f"{args.scenario}: mechanism.type {s.data['mechanism']['type']!r}: quality measures "
-            "PlanarArm, Probe, PointPivot and LineGuide"
+            f"{', '.join(Q.QUALITY_MECHANISMS)}"
+        )
+    if (s.data.get("set") or {}).get("members"):
+        errors.append(
+            f"{args.scenario}: set.members: quality measures one mechanism at a time, got a "
+            "set: measure a scenario of each member on its own"
         )
     if not errors:  # what run checks before it simulates, before anything is written
         from .sim.loop import preflight

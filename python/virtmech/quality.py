@@ -49,6 +49,12 @@ QUIET_RMS_N = 0.1
 #: the window [s]
 LIMIT_CYCLE_WINDOW_S = 0.3
 
+#: how far into a unilateral probe's surface the hand holds the tip's anchor while it moves
+#: along it (`free_force`): the hand's 200 N/m presses with about 0.5 N [m]
+PRESS_DEPTH_M = 3e-3
+#: the speed at which the hand first brings a resting tip down onto the surface [m/s]
+APPROACH_SPEED_M_S = 0.02
+
 #: columns a measure reads from each run
 _COLUMNS = (
     "t",
@@ -162,10 +168,10 @@ class Setup:
             raw["human"] = {**self.raw.get("human", {}), **human}
         return raw
 
-    # the point the mechanism holds: the handle (PlanarArm) or the stylus tip
+    # the point the mechanism holds: the handle (PlanarArm, HandlePath) or the stylus tip
     def point(self, run: Run) -> np.ndarray:
         p = np.stack([run.cols["px"], run.cols["py"], run.cols["pz"]], axis=1)
-        if self.mechanism["type"] == "PlanarArm":
+        if self.mechanism["type"] in HANDLE_MECHANISMS:
             return p
         s = np.stack([run.cols["sx"], run.cols["sy"], run.cols["sz"]], axis=1)
         return p + self.mechanism["length"] * s
@@ -192,10 +198,120 @@ class Setup:
             d = _unit(m["direction"])
             a = _unit(np.cross(d, np.eye(3)[np.argmin(np.abs(d))]))
             return {"across 1": a, "across 2": np.cross(d, a)}
+        if t == "SurfaceProbe":
+            surface = _shape(m)
+            uv, _ = surface.closest_point(p0)
+            return {"into the surface": -np.asarray(surface.normal(*uv), dtype=float)}
+        if t in ("CurveGuide", "HandlePath"):
+            curve = _shape(m)
+            u, _ = curve.closest_point(p0)
+            tangent = np.asarray(curve.tangent(u), dtype=float)
+            a = _across(tangent, m["normal"])
+            return {"along the normal": a, "across": np.cross(tangent, a)}
         raise ValueError(
-            f"mechanism.type: quality measures PlanarArm, Probe, PointPivot and "
-            f"LineGuide, got {t!r}"
+            f"mechanism.type: quality measures {', '.join(QUALITY_MECHANISMS)}, got {t!r}"
         )
+
+    def contact_point(self, rest: Run) -> np.ndarray | None:
+        """For a unilateral probe (Probe, SurfaceProbe), the surface's point under the
+        resting tip (its closest point): a push into the surface deforms it only from there
+        (a tip resting above it first crosses the gap). None for other mechanisms."""
+        m = self.mechanism
+        if not m.get("unilateral") or m["type"] not in ("Probe", "SurfaceProbe"):
+            return None
+        p0 = self.point(rest)[-1]
+        if m["type"] == "Probe":
+            n = _unit(m["plane_normal"])
+            return p0 - ((p0 - np.asarray(m["plane_point"], dtype=float)) @ n) * n
+        return np.asarray(_shape(m).closest_point(p0)[1], dtype=float)
+
+    def approach(self, rest: Run, depth_m: float = PRESS_DEPTH_M) -> np.ndarray | None:
+        """For a unilateral probe, the offset that takes the resting tip to `depth_m` into
+        the surface under it (the hand then presses the tip onto it); None for others."""
+        contact = self.contact_point(rest)
+        if contact is None:
+            return None
+        into = next(iter(self.constrained_axes(rest).values()))  # its only axis
+        return contact + depth_m * into - self.point(rest)[-1]
+
+    def path(self, rest: Run, distance_m: float, steps: int = 20,
+             depth_m: float = 0.0) -> list[list[float]]:
+        """Offsets along the mechanism, `distance_m` long, from where its point rests (from
+        `depth_m` into the surface under it, for a unilateral probe): a polyline for the
+        hand's anchor, straight for planes and lines, on the shape for curves and surfaces
+        (at that depth along its normal), so the motion stays along what the mechanism
+        leaves free."""
+        m = self.mechanism
+        p0 = self.point(rest)[-1]
+        if m["type"] in ("CurveGuide", "HandlePath"):
+            return _along_curve(_shape(m), p0, distance_m, steps)
+        if m["type"] == "SurfaceProbe":
+            return _along_surface(_shape(m), p0, distance_m, steps, depth_m)
+        return [list(_tangent(m) * distance_m)]
+
+
+#: the mechanisms the measures know, and those of them that hold the handle (not the tip)
+QUALITY_MECHANISMS = ("PlanarArm", "Probe", "PointPivot", "LineGuide", "SurfaceProbe",
+                      "CurveGuide", "HandlePath")
+HANDLE_MECHANISMS = ("PlanarArm", "HandlePath")
+
+
+def _shape(m: dict):
+    from .shapes import shape_from_dict
+
+    return shape_from_dict(m["surface"] if m["type"] == "SurfaceProbe" else m["curve"])
+
+
+def _across(tangent: np.ndarray, normal) -> np.ndarray:
+    """The unit direction across a path along `normal` (made orthogonal to the tangent);
+    any direction across it where the two are parallel."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    a = n - (n @ tangent) * tangent
+    if np.linalg.norm(a) < 1e-6:
+        a = np.cross(tangent, np.eye(3)[np.argmin(np.abs(tangent))])
+    return _unit(a)
+
+
+def _along_curve(curve, p0: np.ndarray, distance_m: float, steps: int) -> list[list[float]]:
+    """Points of the curve from the one closest to p0, `distance_m` of arc length on
+    (toward the end with room for it, else the other), as offsets from that point."""
+    u0, c0 = curve.closest_point(p0)
+    c0 = np.asarray(c0, dtype=float)
+    best = None
+    for end in (curve.upper, curve.lower):
+        u = np.linspace(u0, end, 4001)
+        pts = np.array([curve.evaluate(x) for x in u])
+        s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))]
+        if best is None or s[-1] > best[1][-1]:
+            best = (pts, s)
+        if s[-1] >= distance_m:
+            break
+    pts, s = best
+    targets = np.linspace(0.0, min(distance_m, s[-1]), steps + 1)[1:]
+    out = np.stack([np.interp(targets, s, pts[:, k]) for k in range(3)], axis=1)
+    return (out - c0).tolist()
+
+
+def _along_surface(surface, p0: np.ndarray, distance_m: float, steps: int,
+                   depth_m: float = 0.0) -> list[list[float]]:
+    """Points of the surface from the one closest to p0 along its first parameter's
+    direction, stepped on in the tangent plane and brought back onto the surface, each
+    `depth_m` into it along its normal there, as offsets from the first such point."""
+    uv, c = surface.closest_point(p0)
+    x = np.asarray(c, dtype=float)
+    direction = _unit(np.asarray(surface.derivatives(*uv, 1)[1][0], dtype=float))  # S_u
+    n = np.asarray(surface.normal(*uv), dtype=float)
+    start, out = x - depth_m * n, []
+    h = distance_m / steps
+    for _ in range(steps):
+        direction = _unit(direction - (direction @ n) * n)
+        uv, x_new = surface.closest_point(x + h * direction)
+        x_new = np.asarray(x_new, dtype=float)
+        direction = _unit(x_new - x)
+        x = x_new
+        n = np.asarray(surface.normal(*uv), dtype=float)
+        out.append((x - depth_m * n - start).tolist())
+    return out
 
 
 def _unit(v) -> np.ndarray:
@@ -235,10 +351,13 @@ def stiffness(
     rest: Run | None = None,
 ) -> dict:
     """Per constrained axis: the deviation [m] of the mechanism's point along the push under
-    each force, and the rendered stiffness [N/m] (force / deviation at the largest force)."""
+    each force, and the rendered stiffness [N/m] (force / deviation at the largest force).
+    Into a unilateral probe's surface the deviation counts from the surface (the depth), not
+    from a resting tip above it."""
     forces = [float(f) for f in forces]
     rest = rest or setup.start(workers)
     axes = setup.constrained_axes(rest)
+    contact = setup.contact_point(rest)
     hold_s, push_s, ramp = 0.4, 1.0, 0.2
     raws, keys = [], []
     for name, a in axes.items():
@@ -256,6 +375,8 @@ def stiffness(
     for (name, f), r in zip(keys, runs):
         x = setup.point(r) @ axes[name]
         before = x[_window(r.t, hold_s - 0.1, hold_s)].mean()
+        if contact is not None and name.startswith("into"):
+            before = max(before, float(contact @ axes[name]))  # the depth, past any gap
         during = x[_window(r.t, hold_s + push_s - 0.3, hold_s + push_s)].mean()
         d = out.setdefault(name, {"axis": axes[name].tolist(), "deviation_m": {}})
         d["deviation_m"][f"{f:g}"] = float(during - before)
@@ -276,14 +397,28 @@ def free_force(
 ) -> dict:
     """The device's force along the hand's motion [N] while the hand moves `distance_m`
     along the mechanism at each constant speed: mean (+: pushing the hand along) and peak,
-    over the cycles at speed."""
+    over the cycles at speed, and the median force across the motion. A unilateral probe's
+    tip resting above its surface is first brought onto it and slides along it pressed
+    PRESS_DEPTH_M in."""
     m = setup.mechanism
     rest = rest or setup.start(workers)
     raws, speeds = [], [float(s) for s in speeds]
+    # a unilateral probe's tip first pressed onto its surface, slowly (below every measured
+    # speed's threshold), then moved along it at that depth
+    approach = setup.approach(rest)
+    lead: list[dict] = [_hold(0.0, 0.4)]
+    start = 0.4
+    if approach is not None:
+        down_s = float(np.linalg.norm(approach)) / APPROACH_SPEED_M_S + 0.1
+        lead.append({"action": "follow", "start_s": start, "profile": "constant",
+                     "speed_m_s": APPROACH_SPEED_M_S, "ramp_s": 0.05,
+                     "offsets": [list(approach)]})
+        lead.append(_hold(start + down_s, 0.3))
+        start += down_s + 0.3
     for v in speeds:
         seg = {
             "action": "follow",
-            "start_s": 0.4,
+            "start_s": start,
             "profile": "constant",
             "speed_m_s": v,
             "ramp_s": 0.05,
@@ -293,9 +428,10 @@ def free_force(
             seg["theta"] = [th0, th0 + distance_m / m["length"]]
             seg["orientation"] = "path"
         else:
-            seg["offsets"] = [list(_tangent(m) * distance_m)]
-        duration = 0.4 + distance_m / v + 0.1 + 0.3
-        raws.append(setup.raw_with(f"move-{v:g}", [_hold(0.0, 0.4), seg], duration))
+            seg["offsets"] = setup.path(rest, distance_m,
+                                        depth_m=PRESS_DEPTH_M if approach is not None else 0.0)
+        duration = start + distance_m / v + 0.1 + 0.3
+        raws.append(setup.raw_with(f"move-{v:g}", [*lead, seg], duration))
     out = {}
     for v, r in zip(speeds, run_all(raws, workers)):
         vel = np.stack([r.cols["vx"], r.cols["vy"], r.cols["vz"]], axis=1)
@@ -303,9 +439,12 @@ def free_force(
         speed = np.linalg.norm(vel, axis=1)
         at = speed > 0.8 * v
         along = np.einsum("ij,ij->i", f[at], vel[at] / speed[at, None])
+        across = np.sqrt(np.maximum(np.sum(f[at] ** 2, axis=1) - along**2, 0.0))
         out[f"{v:g}"] = {  # NaN where the handle never reached the speed
             "mean_n": float(along.mean()) if along.size else math.nan,
             "peak_n": float(np.abs(along).max()) if along.size else math.nan,
+            # the force across the motion (a pressed probe: the contact force)
+            "across_median_n": float(np.median(across)) if along.size else math.nan,
             "cycles": int(at.sum()),
         }
     return out
@@ -375,7 +514,7 @@ def work(setup: Setup, workers: int | None = 1, rest: Run | None = None) -> dict
             after = r.t >= 0.5
             p = setup.point(r)
             entry["travel_m"] = float(np.linalg.norm(p[after] - p[after][0], axis=1).max())
-            if "arm_pos_angle" in r.cols:
+            if setup.mechanism["type"] == "PlanarArm":  # (the column is NaN for others)
                 ang = np.unwrap(r.cols["arm_pos_angle"][after])
                 entry["travel_deg"] = float(np.degrees(np.abs(ang - ang[0]).max()))
         out[name] = entry
@@ -596,7 +735,7 @@ def summary_lines(result: dict) -> list[str]:
     for v, d in result["free_force"].items():
         lines.append(
             f"  force along the motion at {v} m/s: mean {d['mean_n']:+.3f} N, "
-            f"peak {d['peak_n']:.3f} N"
+            f"peak {d['peak_n']:.3f} N (across it: median {d['across_median_n']:.3f} N)"
         )
     for name, d in result["work"].items():
         extra = ""
