@@ -139,6 +139,18 @@ nb::dict shape_dict(nb::handle self, const char* type,
   return d;
 }
 
+// `obj` as n points (n, 3), row-major; ValueError naming `name` otherwise.
+std::vector<double> to_points(const char* name, nb::handle obj, long& n) {
+  std::vector<long> s;
+  auto d = as_doubles(name, obj, 2, "an array of shape (n, 3)", s);
+  if (s[1] != 3) {
+    throw nb::value_error((std::string(name) + ": expected an array of shape (n, 3), got shape " +
+                           shape_str(s)).c_str());
+  }
+  n = s[0];
+  return d;
+}
+
 void bind_geometry(nb::module_& m) {
   m.attr("MAX_NURBS_DEGREE") = kMaxNurbsDegree;
 
@@ -166,7 +178,26 @@ void bind_geometry(nb::module_& m) {
             const double u = c.closest_point(to_point("p", p), point);
             return nb::make_tuple(u, point);
           },
-          "p"_a, "(u, point): the parameter and the point (3,) of the curve closest to p.");
+          "p"_a, "(u, point): the parameter and the point (3,) of the curve closest to p.")
+      .def(
+          "closest_points",
+          [](const Curve& c, nb::handle X) {
+            long n = 0;
+            const std::vector<double> x = to_points("X", X, n);
+            Eigen::VectorXd u(n);
+            Rows3 points(n, 3);
+            {
+              nb::gil_scoped_release release;
+              for (long i = 0; i < n; ++i) {
+                Eigen::Vector3d point;
+                u[i] = c.closest_point(Eigen::Vector3d(x[3 * i], x[3 * i + 1], x[3 * i + 2]), point);
+                points.row(i) = point.transpose();
+              }
+            }
+            return nb::make_tuple(u, points);
+          },
+          "X"_a,
+          "(u (n,), points (n, 3)): closest_point for each row of X (n, 3), in one call.");
 
   nb::class_<Surface>(m, "Surface", "A parametric surface S(u, v) (base class).")
       .def_prop_ro("lower", &Surface::lower, "Lower parameter bounds (u, v) (may be -inf).")
@@ -181,7 +212,30 @@ void bind_geometry(nb::module_& m) {
       .def("curvature", &curvature_dict, "u"_a, "v"_a,
            "{'mean', 'gaussian'}: curvatures with respect to normal() [1/m, 1/m^2].")
       .def("closest_point", &surface_closest, "p"_a,
-           "(parameters (2,), point (3,)): the point of the surface closest to p.");
+           "(parameters (2,), point (3,)): the point of the surface closest to p.")
+      .def(
+          "closest_points",
+          [](const Surface& sf, nb::handle X) {
+            long n = 0;
+            const std::vector<double> x = to_points("X", X, n);
+            Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> uv(n, 2);
+            Rows3 points(n, 3), normals(n, 3);
+            {
+              nb::gil_scoped_release release;
+              for (long i = 0; i < n; ++i) {
+                Eigen::Vector3d point;
+                const Eigen::Vector2d w =
+                    sf.closest_point(Eigen::Vector3d(x[3 * i], x[3 * i + 1], x[3 * i + 2]), point);
+                uv.row(i) = w.transpose();
+                points.row(i) = point.transpose();
+                normals.row(i) = sf.normal(w[0], w[1]).transpose();
+              }
+            }
+            return nb::make_tuple(uv, points, normals);
+          },
+          "X"_a,
+          "(parameters (n, 2), points (n, 3), normals (n, 3)): closest_point for each row of X "
+          "(n, 3), and the unit normal there, in one call.");
 
   nb::class_<NurbsCurve, Curve>(m, "NurbsCurve",
                                 "A NURBS curve (Piegl & Tiller, The NURBS Book).")

@@ -252,10 +252,11 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
     runs); `setup_and_run_wall_time_s` adds building the MJCF and solving the start pose;
     `overhead_vs_mujoco`: that wall time over `mujoco_alone(result, repeats)` (default
     `mujoco_alone_s`); `control_time_s` (median): of that wall time, the controller's (or
-    the set's) step, `control_us_per_cycle` the same per control cycle, and
+    the set's) step, `control_us_per_cycle` the same per control cycle, `derived_time_s`
+    (median) the log's derived columns (distances from the shape, ...), and
     `loop_overhead_vs_mujoco` the rest of the wall time (the simulation around the
-    rendering: sensors, the hand, the log) over MuJoCo alone. Returns the figures and a
-    note."""
+    rendering: sensors, the hand, the log rows) over MuJoCo alone. Returns the figures and
+    a note."""
     try:
         from virtmech import scenarios as vs
         from virtmech import sim as vsim
@@ -273,11 +274,13 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
                 t0 = time.perf_counter()
                 result = vsim.run(scenario, seed=0, progress=False)
                 total = time.perf_counter() - t0
-                runs.append((float(result.wall_time_s), total, float(result.control_time_s)))
+                runs.append((float(result.wall_time_s), total, float(result.control_time_s),
+                             float(result.derived_time_s)))
             sim_s = float(result.sim_time_s)
             wall_s = float(np.median([r[0] for r in runs]))
             total_s = float(np.median([r[1] for r in runs]))
             control_s = float(np.median([r[2] for r in runs]))
+            derived_s = float(np.median([r[3] for r in runs]))
         except Exception as exc:
             notes.append(f"{name}: {type(exc).__name__}: {exc}")
             continue
@@ -289,7 +292,8 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
                     "overhead_vs_mujoco": wall_s / mujoco_s,
                     "control_time_s": control_s,
                     "control_us_per_cycle": control_s / max(result.n_cycles, 1) * 1e6,
-                    "loop_overhead_vs_mujoco": (wall_s - control_s) / mujoco_s,
+                    "derived_time_s": derived_s,
+                    "loop_overhead_vs_mujoco": (wall_s - control_s - derived_s) / mujoco_s,
                     "engine": result.info["physics"].get("engine", "python"),
                     "runs": repeats})
     return out, "; ".join(notes)
@@ -451,18 +455,20 @@ def format_table(r: dict[str, Any]) -> str:
     lines.append("")
     if r["simulation"]:
         lines.append(f"{'simulation scenario':<28}{'real-time factor':>18}{'vs MuJoCo alone':>17}"
-                     f"{'controller':>12}{'rest vs MuJoCo':>16}")
-        lines.append(f"{'':<28}{'':>18}{'':>17}{'[us/cycle]':>12}{'':>16}")
+                     f"{'controller':>12}{'derived':>10}{'rest vs MuJoCo':>16}")
+        lines.append(f"{'':<28}{'':>18}{'':>17}{'[us/cycle]':>12}{'[%]':>10}{'':>16}")
         for s in r["simulation"]:
             lines.append(
                 f"{s['scenario']:<28}{s['realtime_factor']:>17.1f}x"
                 f"{s['overhead_vs_mujoco']:>16.2f}x"
                 f"{s['control_us_per_cycle']:>12.2f}"
+                f"{100 * s['derived_time_s'] / s['wall_time_s']:>10.0f}"
                 f"{s['loop_overhead_vs_mujoco']:>15.2f}x"
             )
         lines.append("(vs MuJoCo alone: the loop's wall time over MuJoCo's for the same steps; "
-                     "controller: the rendering's own time per cycle; rest vs MuJoCo: the "
-                     "loop's time without it over MuJoCo's)")
+                     "controller: the rendering's own time per cycle; derived: the share of the "
+                     "wall time deriving log columns (distances from a shape); rest vs MuJoCo: "
+                     "the wall time without those two over MuJoCo's)")
     if r.get("simulation_note"):
         lines.append(f"simulation: {r['simulation_note']}")
     return "\n".join(lines)

@@ -110,17 +110,19 @@ def test_main_rejects_a_bad_cycle_count():
 
 def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     # a stand-in simulation: 2 s simulated (2001 cycles) in 0.07, 0.04 and 0.05 s of wall
-    # time, of which 0.02, 0.01 and 0.015 s in the controller
+    # time, of which 0.02, 0.01 and 0.015 s in the controller and 4, 2 and 3 ms deriving
+    # columns
     scen = types.ModuleType("virtmech.scenarios")
     scen.names = lambda: ["omni_probe_table"]
     scen.load = lambda name: {"name": name}
     sim = types.ModuleType("virtmech.sim")
-    walls = iter([(0.07, 0.02), (0.04, 0.01), (0.05, 0.015)])
+    walls = iter([(0.07, 0.02, 0.004), (0.04, 0.01, 0.002), (0.05, 0.015, 0.003)])
 
     def run(scenario, seed=None, progress=False):
-        wall, control = next(walls)
+        wall, control, derived = next(walls)
         return types.SimpleNamespace(sim_time_s=2.0, wall_time_s=wall, control_time_s=control,
-                                     n_cycles=2001, info={"physics": {"engine": "compiled"}})
+                                     derived_time_s=derived, n_cycles=2001,
+                                     info={"physics": {"engine": "compiled"}})
 
     sim.run = run
     monkeypatch.setitem(sys.modules, "virtmech.scenarios", scen)
@@ -138,5 +140,6 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
                         "mujoco_alone_s": 0.04, "overhead_vs_mujoco": pytest.approx(1.25),
                         "control_time_s": pytest.approx(0.015),
                         "control_us_per_cycle": pytest.approx(0.015 / 2001 * 1e6),
-                        "loop_overhead_vs_mujoco": pytest.approx((0.05 - 0.015) / 0.04),
+                        "derived_time_s": pytest.approx(0.003),
+                        "loop_overhead_vs_mujoco": pytest.approx((0.05 - 0.015 - 0.003) / 0.04),
                         "runs": 3}]

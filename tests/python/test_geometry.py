@@ -365,3 +365,30 @@ def test_closest_point_never_worse_than_a_dense_grid():
             x = rng.uniform(-1.2, 1.2, 3)
             _, point = c.closest_point(x)
             assert np.linalg.norm(point - x) <= np.min(np.linalg.norm(pts - x, axis=1)) + 1e-12
+
+
+def test_closest_points_in_one_call_are_closest_point_row_by_row():
+    rng = np.random.default_rng(11)
+    X = rng.normal(size=(40, 3))
+    curve = vm.NurbsCurve(*random_curve(rng, 3), 3)
+    u, P = curve.closest_points(X)
+    assert u.shape == (40,) and P.shape == (40, 3)
+    for i, x in enumerate(X):
+        ui, pi = curve.closest_point(x)
+        assert u[i] == ui
+        np.testing.assert_array_equal(P[i], pi)
+    surfaces = [vm.NurbsSurface(*random_surface(rng, 3, 2), 3, 2), vm.Sphere([0.1, 0, 0], 0.5),
+                vm.Cylinder([0, 0, 0], [0, 0, 1], 0.3), vm.Plane([0, 0, 0.2], [0, 1, 1])]
+    for s in surfaces:
+        uv, P, N = s.closest_points(X)
+        assert uv.shape == (40, 2) and P.shape == N.shape == (40, 3)
+        for i, x in enumerate(X):
+            uvi, pi = s.closest_point(x)
+            np.testing.assert_array_equal(uv[i], uvi)
+            np.testing.assert_array_equal(P[i], pi)
+            np.testing.assert_array_equal(N[i], s.normal(*uvi))
+    with pytest.raises(ValueError, match=r"X: expected an array of shape \(n, 3\), got shape "
+                                         r"\(4, 2\)"):
+        curve.closest_points(np.zeros((4, 2)))
+    with pytest.raises(ValueError, match=r"X: expected an array of shape \(n, 3\)"):
+        surfaces[1].closest_points(np.zeros(3))

@@ -103,6 +103,7 @@ def test_the_run_reports_its_controllers_share_of_the_wall_time():
     r = run(s)
     # every cycle steps the controller, which takes some time but not all of the loop's
     assert 0.0 < r.control_time_s < r.wall_time_s
+    assert 0.0 < r.derived_time_s < r.wall_time_s - r.control_time_s
 
 
 def test_the_hand_plan_is_the_per_cycle_intent():

@@ -122,16 +122,6 @@ def line_guide(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
     return _one_sided(w @ n, w @ np.cross(n, d), bool(m.get("unilateral")))
 
 
-def _closest_points(shape, X: np.ndarray):
-    """Parameters and points of `shape` closest to each row of X (the shape's own search)."""
-    params, points = [], []
-    for x in np.atleast_2d(X):
-        par, pt = shape.closest_point(x)
-        params.append(par)
-        points.append(pt)
-    return np.asarray(params, dtype=float), np.asarray(points, dtype=float).reshape(-1, 3)
-
-
 def surface_probe(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
     """The tip's signed height above the surface along the normal at its closest point
     (negative: behind it)."""
@@ -139,8 +129,7 @@ def surface_probe(m: dict, p: np.ndarray, s: np.ndarray) -> Distances:
 
     surface = shape_from_dict(m["surface"])
     X = tip(m, p, s)
-    uv, points = _closest_points(surface, X)
-    normals = np.array([surface.normal(u, v) for u, v in uv]).reshape(-1, 3)
+    _, points, normals = surface.closest_points(np.atleast_2d(X))  # the shape's own search
     h = np.sum((X - points) * normals, axis=1)
     dist = np.maximum(-h, 0.0) if m.get("unilateral") else np.abs(h)
     return Distances(dist, h, h, np.zeros_like(h))
@@ -151,7 +140,7 @@ def _from_curve(m: dict, X: np.ndarray) -> Distances:
     rest."""
     from ..shapes import shape_from_dict
 
-    _, points = _closest_points(shape_from_dict(m["curve"]), X)
+    _, points = shape_from_dict(m["curve"]).closest_points(np.atleast_2d(X))
     w = X - points
     n = _unit(m.get("normal", [0.0, 0.0, 1.0]))
     h = w @ n

@@ -398,6 +398,9 @@ class SimResult:
     #: of `wall_time_s`, the time spent in the controller's (or the set's) step: the
     #: rendering itself, the rest is the simulation around it
     control_time_s: float = 0.0
+    #: of `wall_time_s`, the time spent deriving the log's columns from the logged state
+    #: (distances from the shape, PlanarArm angles, the grip) after each block
+    derived_time_s: float = 0.0
 
     def blocks(self, names, rows: int | None = None):
         """The named columns of the log, a block of rows at a time (virtmech.sim.logio)."""
@@ -746,6 +749,7 @@ def run(
     )
     wall0 = time.perf_counter()
     sink_wall = 0.0  # the sink's time (writing the log): not the simulation's
+    post_wall = 0.0  # the derived columns' time (part of the simulation's)
     b0 = 0  # first cycle of the current block
     for k0, k1 in zip(cuts[:-1], cuts[1:]):
         T_h0 = device.forward(Cinv @ (data.qpos - c0))
@@ -764,7 +768,9 @@ def run(
         servo.run(k0, plan, noise, dropout, buf[k0 - b0 : k1 - b0])
         if k1 - b0 == block or k1 == N:
             rows_done = buf[: k1 - b0]
+            t_post = time.perf_counter()
             post(rows_done)
+            post_wall += time.perf_counter() - t_post
             if log is not None:
                 log[b0:k1] = rows_done
             if sink is not None:
@@ -809,6 +815,7 @@ def run(
         wall_time_s=wall,
         sink_time_s=sink_wall,
         control_time_s=servo.control_time_s,
+        derived_time_s=post_wall,
         info=info,
     )
 
