@@ -768,24 +768,13 @@ def summary_lines(result: dict) -> list[str]:
     return lines
 
 
-def _finite(x):
-    """x with every non-finite number None (JSON has no NaN or infinity)."""
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
-
-
 def to_json(result: dict) -> str:
     """The result as strict JSON: a figure that does not apply (NaN) is null."""
     import json
 
-    return json.dumps(_finite(result), indent=2, allow_nan=False)
+    from .jsonable import jsonable
+
+    return json.dumps(jsonable(result, infinity="null"), indent=2, allow_nan=False)
 
 
 def write_report(result: dict, out) -> list[str]:

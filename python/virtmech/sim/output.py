@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..jsonable import jsonable
 from .logio import CsvLog, ParquetLog  # noqa: F401 (the sinks, here as before)
 from .loop import UNITS, SimResult
 
@@ -50,29 +51,10 @@ def write_log_csv(result: SimResult, path: Path, block_rows: int = 10000) -> Non
             out(result.log[k : k + block_rows], result.columns)
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        x = float(x)
-        if math.isnan(x):
-            return None  # null: a metric that does not apply (metrics' notes say why)
-        return x if math.isfinite(x) else str(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.bool_,)):
-        return bool(x)
-    return x
-
-
 def run_json(result: SimResult, metrics_: dict | None = None) -> dict:
     info = dict(result.info)
     mjcf = info.pop("mjcf", None)
-    return _jsonable(
+    return jsonable(
         {
             "name": result.scenario.name,
             "scenario": result.scenario.to_dict(),
@@ -353,6 +335,6 @@ def write_summary(runs: dict[str, dict], path: str | Path) -> dict:
     """summary.json: {"runs": {name: metrics} in the paper's figure order, "within_m",
     "metric_definitions": {name: [unit, definition]}} over a set of runs."""
     ordered = {k: runs[k] for k in paper_order(runs)}
-    summary = _jsonable({"runs": ordered, "within_m": WITHIN_M, "metric_definitions": METRICS})
+    summary = jsonable({"runs": ordered, "within_m": WITHIN_M, "metric_definitions": METRICS})
     Path(path).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return summary

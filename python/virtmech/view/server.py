@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from ..jsonable import jsonable
 from .live import LAWS, LiveSim, Pacer, Settings
 from .scene import Scene, camera_for, rot_of, up_of, wxyz_of
 
@@ -51,22 +52,6 @@ def check_port(host: str, port: int, label: str | None = None) -> None:
         ) from None
 
 
-def _jsonable(x):
-    """x with arrays as lists and non-finite numbers as None (strict JSON)."""
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
-
-
 class _StateHandler(BaseHTTPRequestHandler):
     viewer: ViewServer  # set on the subclass made per server
 
@@ -74,7 +59,7 @@ class _StateHandler(BaseHTTPRequestHandler):
         if self.path.split("?")[0].rstrip("/") not in ("/state", ""):
             self.send_error(404, "GET /state")
             return
-        body = json.dumps(_jsonable(self.viewer.state())).encode()
+        body = json.dumps(jsonable(self.viewer.state(), infinity="null")).encode()
         self.send_response(200)
         self.send_header("Content-Type", "application/json")
         self.send_header("Content-Length", str(len(body)))
