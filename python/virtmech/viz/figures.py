@@ -677,32 +677,21 @@ def _panel_tip_height(ax, result, mech, t, F) -> None:
 
 def _panel_normal_force(ax, result, mech, t, F) -> None:
     """Force along the normal against Kp times the depth (unilateral: the surface pushes
-    only while the tip is behind it)."""
-    key = "plane_normal" if "plane_normal" in mech else "normal"
-    n = np.asarray(mech[key], dtype=float)
-    n /= np.linalg.norm(n)
+    only while the tip is behind it): the plane's normal, or a surface's at the tip's
+    closest point."""
+    if mech["type"] == "SurfaceProbe":
+        surface = _shape_of(mech)
+        tips = result.cols("px", "py", "pz") + _length(mech) * result.cols("sx", "sy", "sz")
+        normals = surface.closest_points(tips)[2]
+        along, what = np.sum(F * normals, axis=1), "the surface's normal"
+    else:
+        key = "plane_normal" if "plane_normal" in mech else "normal"
+        n = np.asarray(mech[key], dtype=float)
+        along, what = F @ (n / np.linalg.norm(n)), "the normal"
     h = result.col("dist_normal")
     kp = float(result.info["controller_model"]["kp"][0])  # the resolved Kp along x
     depth = np.maximum(-h, 0.0) if mech.get("unilateral") else -h
-    ax.plot(t, F @ n, color="crimson", label="device force along the normal")
-    ax.plot(t, kp * depth, color="0.3", ls=":", lw=1.2, label=f"Kp × depth (Kp = {kp:g} N/m)")
-    ax.set_ylabel("force along the\nnormal [N]")
-    lo, hi = ax.get_ylim()
-    ax.set_ylim(lo, hi + 0.35 * (hi - lo))
-    ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
-
-
-def _panel_surface_force(ax, result, mech, t, F) -> None:
-    """Force along the surface's normal at the tip's closest point against Kp times the
-    depth (unilateral: the surface pushes only while the tip is behind it)."""
-    surface = _shape_of(mech)
-    tips = result.cols("px", "py", "pz") + _length(mech) * result.cols("sx", "sy", "sz")
-    normals = np.array([surface.normal(*surface.closest_point(x)[0]) for x in tips])
-    h = result.col("dist_normal")
-    kp = float(result.info["controller_model"]["kp"][0])
-    depth = np.maximum(-h, 0.0) if mech.get("unilateral") else -h
-    ax.plot(t, np.sum(F * normals, axis=1), color="crimson",
-            label="device force along the surface's normal")
+    ax.plot(t, along, color="crimson", label=f"device force along {what}")
     ax.plot(t, kp * depth, color="0.3", ls=":", lw=1.2, label=f"Kp × depth (Kp = {kp:g} N/m)")
     ax.set_ylabel("force along the\nnormal [N]")
     lo, hi = ax.get_ylim()
@@ -744,7 +733,7 @@ PANELS = {
     "Probe": (_panel_tip_height, _panel_normal_force),
     "PointPivot": (_panel_distance_log, _panel_tip_height),
     "LineGuide": (_panel_distance_log, _panel_tip_height),
-    "SurfaceProbe": (_panel_tip_height, _panel_surface_force),
+    "SurfaceProbe": (_panel_tip_height, _panel_normal_force),
     "CurveGuide": (_panel_distance_log, _panel_tip_height),
     "HandlePath": (_panel_distance_log,),
 }
