@@ -147,33 +147,35 @@ struct PyServoLoop {
   ServoLoop loop;
 };
 
+// ServoLoop(renderer, ...) for a Controller or a MechanismSet: the same arguments, the
+// renderer kept alive by the loop.
+template <typename Renderer>
+void def_init(nb::class_<PyServoLoop>& c, const char* doc) {
+  c.def(nb::init<Renderer&, std::uintptr_t, std::uintptr_t, CF64, CF64, std::vector<int>, int,
+                 double, std::vector<int>, std::vector<double>, CF64, double, int, double, int,
+                 const nb::dict&, const nb::dict&>(),
+        "controller"_a, "model"_a, "data"_a, "coupling_inv"_a, "coupling_offset"_a,
+        "actuated"_a, "substeps"_a, "period_s"_a, "comp_bodies"_a, "comp_masses"_a,
+        "gravity"_a, "quantum"_a, "delay_cycles"_a, "velocity_alpha"_a, "hand_body"_a,
+        "plan_layout"_a, "log_layout"_a, nb::keep_alive<1, 2>(), doc);
+}
+
 }  // namespace
 
 NB_MODULE(_sim, m) {
   m.doc() = "virtmech's simulation loop (C++, MuJoCo's C API); internal: use virtmech.sim.run.";
   m.attr("MUJOCO_VERSION") = mjVERSION_HEADER;  // the MuJoCo headers it was built with
   m.def("mujoco_library_version", &mj_version, "mj_version() of the MuJoCo library loaded.");
-  nb::class_<PyServoLoop>(m, "ServoLoop",
-                          "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).")
-      .def(nb::init<MechanismSet&, std::uintptr_t, std::uintptr_t, CF64, CF64, std::vector<int>,
-                    int, double, std::vector<int>, std::vector<double>, CF64, double, int,
-                    double, int, const nb::dict&, const nb::dict&>(),
-           "controller"_a, "model"_a, "data"_a, "coupling_inv"_a, "coupling_offset"_a,
-           "actuated"_a, "substeps"_a, "period_s"_a, "comp_bodies"_a, "comp_masses"_a,
-           "gravity"_a, "quantum"_a, "delay_cycles"_a, "velocity_alpha"_a, "hand_body"_a,
-           "plan_layout"_a, "log_layout"_a, nb::keep_alive<1, 2>(),
-           "The loop rendering a MechanismSet (controller: the set).")
-      .def(nb::init<Controller&, std::uintptr_t, std::uintptr_t, CF64, CF64, std::vector<int>,
-                    int, double, std::vector<int>, std::vector<double>, CF64, double, int,
-                    double, int, const nb::dict&, const nb::dict&>(),
-           "controller"_a, "model"_a, "data"_a, "coupling_inv"_a, "coupling_offset"_a,
-           "actuated"_a, "substeps"_a, "period_s"_a, "comp_bodies"_a, "comp_masses"_a,
-           "gravity"_a, "quantum"_a, "delay_cycles"_a, "velocity_alpha"_a, "hand_body"_a,
-           "plan_layout"_a, "log_layout"_a, nb::keep_alive<1, 2>(),
-           "model, data: the addresses of an mjModel and its mjData (MjModel._address); the "
-           "caller keeps them alive. hand_body: the hand's body id (-1: none), whose mass the "
-           "loop zeroes while the plan's hand_attached is 0. plan_layout, log_layout: "
-           "{field: column}.")
+  nb::class_<PyServoLoop> loop(m, "ServoLoop",
+                               "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).");
+  def_init<MechanismSet>(loop, "The loop rendering a MechanismSet (controller: the set).");
+  def_init<Controller>(
+      loop,
+      "model, data: the addresses of an mjModel and its mjData (MjModel._address); the "
+      "caller keeps them alive. hand_body: the hand's body id (-1: none), whose mass the "
+      "loop zeroes while the plan's hand_attached is 0. plan_layout, log_layout: "
+      "{field: column}.");
+  loop
       .def_prop_ro("log_columns", [](const PyServoLoop& s) { return s.loop.log_layout().columns; })
       .def_prop_ro("hand_attached", [](const PyServoLoop& s) { return s.loop.hand_attached(); })
       .def_prop_ro("control_time_s",
