@@ -22,6 +22,7 @@
 #endif
 
 #include "allocating_probe.hpp"
+#include "c_api_support.hpp"
 #include "cycle_scenes.hpp"
 #include "heap_counter.hpp"
 #include "virtmech.h"
@@ -341,13 +342,6 @@ TEST(Allocation, CApiStepAndDiagnosticsAllocateNothing) {
     EXPECT_EQ(loop.diagnostics().status & VM_STATUS_FAULT_MASK, 0u);
   }
 }
-
-namespace vmtest {
-// defined in test_c_api_shapes.cpp: shapes from the C arrays of the test patch and letter,
-// make_set() built through the C API
-vm_shape* c_nurbs_surface(const NurbsSurface& surface);
-vm_mechanism_set* c_make_set(int capacity);
-}  // namespace vmtest
 
 TEST(Allocation, CApiShapeProbeAndSetStepAndDiagnosticsAllocateNothing) {
   // a SurfaceProbe on the NURBS test patch (its shape released at once) and the set of four,

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "c_api_support.hpp"
 #include "cycle_scenes.hpp"
 #include "test_support.hpp"
 #include "virtmech.h"
@@ -17,9 +18,7 @@ using namespace virtmech;
 
 namespace vmtest {
 
-// Shared with test_allocation.cpp (declared there): the C arrays of a NURBS curve / surface,
-// read back from the C++ object (the test patch and letter of test_support.hpp), made into a
-// vm_shape; vmtest::make_set() of cycle_scenes.hpp built through the C API.
+// c_api_support.hpp's helpers.
 
 vm_shape* c_nurbs_curve(const NurbsCurve& c) {
   const int n = c.size();
