@@ -435,7 +435,8 @@ def write_sweep(table, out_dir, scenario, grid: Mapping[str, Sequence[Any]], arg
 
     import pyarrow.parquet as pq
 
-    from .sim.output import METRICS, _jsonable
+    from .jsonable import jsonable
+    from .sim.output import METRICS
 
     out = Path(out_dir)
     pq.write_table(table, out / "sweep.parquet")
@@ -456,7 +457,7 @@ def write_sweep(table, out_dir, scenario, grid: Mapping[str, Sequence[Any]], arg
         "versions": _versions(getattr(args, "backend", "process")),
         "metric_definitions": METRICS,
     }
-    (out / "sweep.json").write_text(json.dumps(_jsonable(info), indent=2) + "\n", "utf-8")
+    (out / "sweep.json").write_text(json.dumps(jsonable(info), indent=2) + "\n", "utf-8")
     write_figure(table, list(grid), out / "sweep.png", getattr(args, "metric", "dist_max_m"))
 
 
