@@ -398,6 +398,15 @@ NurbsCurve::NurbsCurve(const Eigen::MatrixX3d& control_points, const Eigen::Vect
     sample_d_start_[i] = d.col(1);
     derivatives_in_span(sample_u_[i + 1], span, 1, d);
     sample_d_end_[i] = d.col(1);
+    // the interval's bounding sphere: about its middle point, the largest distance over 17
+    // points of it, enlarged by half (an interval is an eighth of a knot span or less,
+    // where the curve departs from its samples by far less than that)
+    const double u0 = sample_u_[i], u1 = sample_u_[i + 1];
+    const Eigen::Vector3d c = evaluate(0.5 * (u0 + u1));
+    double r = 0.0;
+    for (int a = 0; a <= 16; ++a) r = std::max(r, (evaluate(u0 + a * (u1 - u0) / 16.0) - c).norm());
+    interval_center_.push_back(c);
+    interval_radius_.push_back(1.5 * r);
   }
 }
 
@@ -487,6 +496,11 @@ double NurbsCurve::closest_point(const Eigen::Vector3d& p, Eigen::Vector3d& poin
     double u = sample_u_[static_cast<size_t>(i)];
     double f = 0.5 * best.d2[c];
     if (kind != 0) {
+      // refined within interval i (the bracket below): skipped where all of the interval is
+      // farther than the best so far
+      const double lb = (interval_center_[static_cast<size_t>(i)] - p).norm() -
+                        interval_radius_[static_cast<size_t>(i)];
+      if (lb > 0.0 && 0.5 * lb * lb >= best_f) continue;
       const V1 lo = V1::Constant(sample_u_[static_cast<size_t>(i)]);
       const V1 hi = V1::Constant(sample_u_[static_cast<size_t>(i) + 1]);
       span = find_span(knots_.data(), n_, p_, 0.5 * (lo[0] + hi[0]));

@@ -128,6 +128,10 @@ class NurbsCurve final : public Curve {
   // of interval i (from the right) and at its end (from the left), i < samples - 1
   std::vector<double> sample_u_;
   std::vector<Eigen::Vector3d> sample_p_, sample_d_start_, sample_d_end_;
+  // a sphere holding the curve over sample interval i (closest_point skips an interval
+  // farther than a minimum it has found)
+  std::vector<Eigen::Vector3d> interval_center_;
+  std::vector<double> interval_radius_;
 };
 
 /// A tensor-product NURBS surface of degrees (p, q) with nu x nv control points.

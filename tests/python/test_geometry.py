@@ -392,3 +392,22 @@ def test_closest_points_in_one_call_are_closest_point_row_by_row():
         curve.closest_points(np.zeros((4, 2)))
     with pytest.raises(ValueError, match=r"X: expected an array of shape \(n, 3\)"):
         surfaces[1].closest_points(np.zeros(3))
+
+
+def test_curve_closest_points_never_worse_than_a_dense_grid_over_many_points():
+    # the search skips sample intervals whose bounding sphere is farther than the best found:
+    # over many points and spiky curves (a weight of 50), never a worse answer for it
+    rng = np.random.default_rng(5)
+    gc = np.linspace(0, 1, 4001)
+    for trial in range(20):
+        p = 1 if trial < 4 else int(rng.integers(1, 6))
+        P, w, U = random_curve(rng, p, n=p + int(rng.integers(2, 12)))
+        if trial % 2:
+            w[rng.integers(0, len(w))] = 50.0
+        c = vm.NurbsCurve(P, w, U, p)
+        dense = np.array([c.evaluate(u) for u in gc])
+        X = rng.uniform(-1.2, 1.2, (100, 3))
+        _, points = c.closest_points(X)
+        d = np.linalg.norm(points - X, axis=1)
+        ref = np.min(np.linalg.norm(dense[None] - X[:, None], axis=2), axis=1)
+        assert np.all(d <= ref + 1e-12), trial
