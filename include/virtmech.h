@@ -196,7 +196,8 @@ typedef struct vm_set_diagnostics {
   int active;           /* the member rendered, -1 for none */
   int size;             /* members in the set */
   double distance[VM_MAX_SET_MEMBERS]; /* each member's distance from the handle [m]; a
-                           unilateral member's tip height, 0 in contact; 0 past size */
+                           unilateral member's tip height, 0 in contact; 0 past size;
+                           NaN on a faulted cycle, which engages no member */
   uint32_t contact;     /* bit i: member i is unilateral and in contact */
   int switching;        /* 1: the output is moving from one member's force to another's */
 } vm_set_diagnostics;

@@ -103,12 +103,15 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
   }
 
   // the member to render: the engaged one while within the release distance, else the
-  // nearest within the snap distance
+  // nearest within the snap distance. A faulted cycle's outputs are cleared (no distances):
+  // it chooses nothing, and the engaged member stays as it was
   int chosen = active_;
-  if (chosen >= 0 && !(out.distance[static_cast<size_t>(chosen)] <= settings_.release_distance)) {
+  if (faults) {
+    out.distance.fill(std::numeric_limits<double>::quiet_NaN());
+  } else if (chosen >= 0 && !(out.distance[static_cast<size_t>(chosen)] <= settings_.release_distance)) {
     chosen = -1;
   }
-  if (chosen < 0) {
+  if (!faults && chosen < 0) {
     double best = settings_.snap_distance;
     for (int i = 0; i < n; ++i) {
       if (out.distance[static_cast<size_t>(i)] < best) {

@@ -39,7 +39,8 @@ struct MechanismSetOutput {
   int size = 0;     //!< members in the set
   /// Each member's distance from the handle [m]: the larger position error of its two
   /// placements (the un-powered one is where the user's tip is on an under-actuated
-  /// device); for a unilateral member out of contact its tip's height, in contact 0.
+  /// device); for a unilateral member out of contact its tip's height, in contact 0. NaN on
+  /// a faulted cycle (which engages no member and keeps the engaged one).
   std::array<double, kMaxSetMembers> distance{};
   std::uint32_t contact = 0;  //!< bit i: member i is unilateral and in contact
   bool switching = false;     //!< the output is moving from one member's force to another's, or back from a fault

@@ -251,9 +251,9 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
     seconds per wall second of the closed loop (`SimResult.wall_time_s`, median of `repeats`
     runs); `setup_and_run_wall_time_s` adds building the MJCF and solving the start pose;
     `overhead_vs_mujoco`: that wall time over `mujoco_alone(result, repeats)` (default
-    `mujoco_alone_s`); `control_time_s` (median): of that wall time, the controller's (or
+    `mujoco_alone_s`); `control_time_s`: of that run's wall time, the controller's (or
     the set's) step, `control_us_per_cycle` the same per control cycle, `derived_time_s`
-    (median) the log's derived columns (distances from the shape, ...), and
+    the log's derived columns (distances from the shape, ...), and
     `loop_overhead_vs_mujoco` the rest of the wall time (the simulation around the
     rendering: sensors, the hand, the log rows) over MuJoCo alone. Returns the figures and
     a note."""
@@ -277,10 +277,10 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
                 runs.append((float(result.wall_time_s), total, float(result.control_time_s),
                              float(result.derived_time_s)))
             sim_s = float(result.sim_time_s)
-            wall_s = float(np.median([r[0] for r in runs]))
+            # the run of median wall time, with its own controller and derived times (the
+            # parts of one run, so that their difference is that run's rest)
+            wall_s, _, control_s, derived_s = sorted(runs)[(len(runs) - 1) // 2]
             total_s = float(np.median([r[1] for r in runs]))
-            control_s = float(np.median([r[2] for r in runs]))
-            derived_s = float(np.median([r[3] for r in runs]))
         except Exception as exc:
             notes.append(f"{name}: {type(exc).__name__}: {exc}")
             continue

@@ -262,10 +262,7 @@ def cmd_quality(args) -> int:
             f"{', '.join(Q.QUALITY_MECHANISMS)}"
         )
     if (s.data.get("set") or {}).get("members"):
-        errors.append(
-            f"{args.scenario}: set.members: quality measures one mechanism at a time, got a "
-            "set: measure a scenario of each member on its own"
-        )
+        errors.append(Q.SET_REFUSED.format(scenario=args.scenario))
     if not errors:  # what run checks before it simulates, before anything is written
         from .sim.loop import preflight
 

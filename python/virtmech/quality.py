@@ -139,6 +139,8 @@ class Setup:
 
         if not isinstance(scenario, sc.Scenario):
             scenario = sc.load(scenario)
+        if (scenario.data.get("set") or {}).get("members"):
+            raise ValueError(SET_REFUSED.format(scenario=scenario.name))
         self.scenario = scenario
         self.raw = {k: v for k, v in scenario.raw.items() if k not in ("intent", "checks")}
         self.raw.setdefault("controller", {})
@@ -250,6 +252,10 @@ class Setup:
         return [list(_tangent(m) * distance_m)]
 
 
+#: why a scenario with a MechanismSet is not measured
+SET_REFUSED = ("{scenario}: set.members: quality measures one mechanism at a time, got a set: "
+               "measure a scenario of each member on its own")
+
 #: the mechanisms the measures know, and those of them that hold the handle (not the tip)
 QUALITY_MECHANISMS = ("PlanarArm", "Probe", "PointPivot", "LineGuide", "SurfaceProbe",
                       "CurveGuide", "HandlePath")
@@ -303,10 +309,16 @@ def _along_surface(surface, p0: np.ndarray, distance_m: float, steps: int,
     n = np.asarray(surface.normal(*uv), dtype=float)
     start, out = x - depth_m * n, []
     h = distance_m / steps
+    # along +S_u, or -S_u where the patch's edge is nearer that way
+    if np.linalg.norm(np.asarray(surface.closest_point(x - h * direction)[1]) - x) > \
+            np.linalg.norm(np.asarray(surface.closest_point(x + h * direction)[1]) - x):
+        direction = -direction
     for _ in range(steps):
         direction = _unit(direction - (direction @ n) * n)
         uv, x_new = surface.closest_point(x + h * direction)
         x_new = np.asarray(x_new, dtype=float)
+        if np.linalg.norm(x_new - x) < 0.5 * h:
+            break  # at the patch's edge: the path ends there
         direction = _unit(x_new - x)
         x = x_new
         n = np.asarray(surface.normal(*uv), dtype=float)

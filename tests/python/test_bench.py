@@ -110,13 +110,13 @@ def test_main_rejects_a_bad_cycle_count():
 
 def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     # a stand-in simulation: 2 s simulated (2001 cycles) in 0.07, 0.04 and 0.05 s of wall
-    # time, of which 0.02, 0.01 and 0.015 s in the controller and 4, 2 and 3 ms deriving
-    # columns
+    # time, of which 12, 20 and 25 ms in the controller and 4, 2 and 1 ms deriving columns
+    # (the median run's, not the medians of each: the parts of one run)
     scen = types.ModuleType("virtmech.scenarios")
     scen.names = lambda: ["omni_probe_table"]
     scen.load = lambda name: {"name": name}
     sim = types.ModuleType("virtmech.sim")
-    walls = iter([(0.07, 0.02, 0.004), (0.04, 0.01, 0.002), (0.05, 0.015, 0.003)])
+    walls = iter([(0.07, 0.012, 0.004), (0.04, 0.02, 0.002), (0.05, 0.025, 0.001)])
 
     def run(scenario, seed=None, progress=False):
         wall, control, derived = next(walls)
@@ -134,12 +134,12 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     figures, note = bench.simulation_figures(mujoco_alone=lambda result, repeats: 0.04)
     assert note == ""
     figures[0].pop("setup_and_run_wall_time_s")  # wall time around the stand-in: not asserted
-    # the median of the three runs, and that run's controller time
+    # the run of median wall time, and that run's controller and derived times
     assert figures == [{"scenario": "omni_probe_table", "realtime_factor": pytest.approx(40.0),
                         "sim_time_s": 2.0, "wall_time_s": 0.05, "engine": "compiled",
                         "mujoco_alone_s": 0.04, "overhead_vs_mujoco": pytest.approx(1.25),
-                        "control_time_s": pytest.approx(0.015),
-                        "control_us_per_cycle": pytest.approx(0.015 / 2001 * 1e6),
-                        "derived_time_s": pytest.approx(0.003),
-                        "loop_overhead_vs_mujoco": pytest.approx((0.05 - 0.015 - 0.003) / 0.04),
+                        "control_time_s": pytest.approx(0.025),
+                        "control_us_per_cycle": pytest.approx(0.025 / 2001 * 1e6),
+                        "derived_time_s": pytest.approx(0.001),
+                        "loop_overhead_vs_mujoco": pytest.approx((0.05 - 0.025 - 0.001) / 0.04),
                         "runs": 3}]

@@ -217,3 +217,22 @@ def test_while_blending_the_energy_tank_books_the_torque_the_motors_hold():
             checked += 1
         prev = (out.active, c.energy, np.array(out.torque), out.switching, q)
     assert checked > 50  # the blend lasts Kp 10 mm / 20 N/s = 0.6 s: many cycles
+
+
+def test_a_faulted_cycle_engages_no_member():
+    # the tip 7 mm above guide 0: between snap (5 mm) and release (10 mm), not engaged
+    dev = cartesian_device()
+    s = make_set(dev)
+    for _ in range(20):
+        out = s.step(q_tip(0.02), np.zeros(6))
+    assert out.active == -1
+    for _ in range(20):
+        out = s.step(q_tip(0.007), np.zeros(6))
+    assert out.active == -1
+    bad = np.zeros(6)
+    bad[2] = np.nan
+    out = s.step(q_tip(0.007), bad)
+    assert out.active == -1 and np.all(np.isnan(out.distance))
+    for _ in range(20):
+        out = s.step(q_tip(0.007), np.zeros(6))
+        assert out.active == -1 and np.all(np.asarray(out.wrench) == 0.0)

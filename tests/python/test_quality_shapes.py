@@ -116,3 +116,25 @@ def test_cli_refuses_a_set_by_its_key(tmp_path):
     assert r.returncode == 2
     assert "set.members" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "q").exists()
+
+
+def test_the_library_refuses_a_set_too():
+    with pytest.raises(ValueError, match="set.members"):
+        Q.Setup("omni-snap")
+
+
+def test_a_path_from_the_patchs_edge_turns_inward_and_stays_on_it():
+    import virtmech.scenarios as sc
+
+    s = Q.Setup(sc.load("omni-surface-nurbs"))
+    surface = Q._shape(s.mechanism)
+    for u in (0.0, 1.0):  # both edges of u
+        p0 = np.asarray(surface.evaluate(u, 0.5)) + 0.01 * np.asarray(surface.normal(u, 0.5))
+        c0 = np.asarray(surface.closest_point(p0)[1])
+        pts = c0 + np.asarray(Q._along_surface(surface, p0, 0.04, 20))
+        assert np.all(np.isfinite(pts)) and len(pts) == 20
+        # on the patch: each point is its own closest point
+        for x in pts:
+            np.testing.assert_allclose(surface.closest_point(x)[1], x, atol=1e-9)
+        steps = np.linalg.norm(np.diff(np.vstack([c0, pts]), axis=0), axis=1)
+        assert steps.max() < 0.0025  # no jump (2 mm steps)

@@ -144,3 +144,27 @@ def test_snapping_between_two_guides_follows_the_hysteresis_and_the_rate():
     expected = np.where(member >= 0, both[np.maximum(member, 0), np.arange(len(X))],
                         both.min(axis=0))
     np.testing.assert_allclose(run.col("dist"), expected, atol=1e-12)
+
+
+def test_with_no_member_rendered_the_distance_is_the_one_the_set_would_snap_to():
+    # a line 20 mm below the tip and a unilateral plane 70 mm below it: the set compares the
+    # plane by its tip height (70 mm), not by its depth (0 everywhere above it)
+    from virtmech.sim.loop import _PostColumns, log_columns
+
+    L = 0.08
+    members = [
+        {"type": "Probe", "plane_point": [0, 0, -0.05], "plane_normal": [0, 0, 1], "length": L,
+         "unilateral": True},
+        {"type": "LineGuide", "point": [0, 0, 0], "direction": [1, 0, 0], "length": L,
+         "normal": [0, 0, 1], "unilateral": False},
+    ]
+    columns = log_columns(6, 6)
+    log = np.zeros((2, len(columns)))
+    c = {n: i for i, n in enumerate(columns)}
+    log[:, c["pz"]] = 0.02 + L  # the handle above the tip, the stylus straight down
+    log[:, c["sz"]] = -1.0
+    log[:, c["member"]] = [-1, 0]
+    post = _PostColumns(columns, members, None, [-0.015, -0.05])
+    d = post._distances(log, log[:, c["px"]:c["px"] + 3], log[:, c["sx"]:c["sx"] + 3])
+    assert d[0, 0] == pytest.approx(0.02)  # none rendered: the line's
+    assert d[1, 1] == pytest.approx(0.07)  # the plane rendered: its signed height

@@ -559,7 +559,10 @@ class _PostColumns:
             if geometry_of(m) is None:
                 each[i, logged != i] = np.nan
         rows = np.arange(len(log))
-        d = each[:, :, 0]  # members x rows: dist
+        # the set's own distance (MechanismSet::distance): a unilateral member's tip height
+        # above its surface (its dist, the depth, is 0 all the way up), others' dist
+        d = np.stack([np.maximum(each[i, :, 1], 0.0) if m.get("unilateral") else each[i, :, 0]
+                      for i, m in enumerate(self.mechanisms)])
         finite = np.isfinite(d)
         nearest = np.where(finite, d, np.inf).argmin(axis=0)
         pick = np.where(member >= 0, member, nearest)
