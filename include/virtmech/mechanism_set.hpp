@@ -43,7 +43,8 @@ struct MechanismSetOutput {
   /// a faulted cycle (which engages no member and keeps the engaged one).
   std::array<double, kMaxSetMembers> distance{};
   std::uint32_t contact = 0;  //!< bit i: member i is unilateral and in contact
-  bool switching = false;     //!< the output is moving from one member's force to another's, or back from a fault
+  /// The output is moving from one member's force to another's, or back from a fault.
+  bool switching = false;
 };
 
 class MechanismSet {
