@@ -109,6 +109,23 @@ inline std::vector<BenchCase> make_cases() {
   cases.push_back({"omni+surface_probe",
                    std::make_unique<Controller>(omni, std::make_shared<SurfaceProbe>(patch, 0.1)),
                    omni_center, omni_amplitude});
+  // a probe whose tip may lift off a sphere (radius 5 cm, its top 1 cm above the handle's
+  // zero height: the handle wanders 3 to 9 cm above it), as in the omni-surface-sphere
+  // scenario
+  cases.push_back({"omni+surface_sphere",
+                   std::make_unique<Controller>(
+                       omni, std::make_shared<SurfaceProbe>(
+                                 std::make_shared<Sphere>(Eigen::Vector3d(0.0, -0.04, 0.01), 0.05,
+                                                          Eigen::Vector3d::UnitZ()),
+                                 0.1, true)),
+                   omni_center, omni_amplitude});
+  // a tip held to a horizontal line 1 cm above the handle's zero height, as in omni-snap
+  cases.push_back({"omni+line_guide",
+                   std::make_unique<Controller>(
+                       omni, std::make_shared<LineGuide>(Eigen::Vector3d(0.0, 0.01, 0.0),
+                                                         Eigen::Vector3d::UnitX(), 0.1,
+                                                         Eigen::Vector3d::UnitY())),
+                   omni_center, omni_amplitude});
   // four members: the patch (unilateral), a table 3 cm below, two letter paths
   MechanismSetSettings ss;
   ss.snap_distance = 0.005;

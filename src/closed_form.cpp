@@ -261,6 +261,7 @@ struct StylusCost {
 // definite, an Armijo backtracking line search, the exponential map as retraction)
 Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& value) noexcept {
   value = f.value(u);
+  bool stale = false;  // value is f(u)'s unless a quadratic-phase step moved u since
   const double scale = f.w_p * f.L * f.L + f.w_r;
   for (int it = 0; it < 60; ++it) {
     Eigen::Vector3d g;
@@ -274,19 +275,22 @@ Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& va
     // the Riemannian Hessian: the tangent block of H less (u . g) I
     Eigen::Matrix2d H2 = E.transpose() * H * E;
     H2.diagonal().array() -= u.dot(g);
-    // Newton's step where H2 is positive definite; else along the direction of negative
-    // curvature (a saddle such as the stylus exactly along a symmetry axis), as far as a
-    // radian and backtracked, plus Newton's step along the other eigenvector
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig;
-    eig.computeDirect(H2);  // closed form for 2 x 2
-    const Eigen::Vector2d lam = eig.eigenvalues();
-    const Eigen::Matrix2d V = eig.eigenvectors();
+    // Newton's step where H2 is positive definite (its least eigenvalue above the floor:
+    // H2 - floor I has a positive corner and determinant); else along the direction of
+    // negative curvature (a saddle such as the stylus exactly along a symmetry axis), as far
+    // as a radian and backtracked, plus Newton's step along the other eigenvector
     const double floor = 1e-12 * scale;
+    const double h00 = H2(0, 0), h01 = 0.5 * (H2(0, 1) + H2(1, 0)), h11 = H2(1, 1);
+    const bool newton = h00 - floor > 0.0 && (h00 - floor) * (h11 - floor) - h01 * h01 > 0.0;
     Eigen::Vector2d step;
-    const bool newton = lam[0] > floor;
     if (newton) {
-      step = -(V.col(0) * (V.col(0).dot(g2) / lam[0]) + V.col(1) * (V.col(1).dot(g2) / lam[1]));
+      const double det = h00 * h11 - h01 * h01;
+      step << -(h11 * g2[0] - h01 * g2[1]) / det, -(h00 * g2[1] - h01 * g2[0]) / det;
     } else {
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig;
+      eig.computeDirect(H2);  // closed form for 2 x 2
+      const Eigen::Vector2d lam = eig.eigenvalues();
+      const Eigen::Matrix2d V = eig.eigenvectors();
       const double g1 = V.col(0).dot(g2), g2v = V.col(1).dot(g2);
       step = V.col(0) * (lam[0] < -floor ? (g1 > 0.0 ? -1.0 : 1.0) : -g1 / scale) -
              V.col(1) * (g2v / (lam[1] > floor ? lam[1] : scale));
@@ -295,11 +299,20 @@ Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& va
     if (n > 1.0) step /= n;  // at most a radian at a time
     if (newton && n < 1e-3) {
       // close to the minimum Newton converges quadratically; a line search would stall
-      // where the decrease falls below the cost's rounding (about sqrt(eps) from it)
-      u = (std::cos(n) * u + std::sin(n) / n * (E * step)).normalized();
-      value = f.value(u);
+      // where the decrease falls below the cost's rounding (about sqrt(eps) from it). The
+      // step's cosine and sine by their Taylor polynomials (next terms n^6 / 720 and
+      // n^6 / 5040 relative, below 1e-20), and the cost only once it is needed
+      const double n2 = n * n;
+      const double cn = 1.0 - n2 * (0.5 - n2 * (1.0 / 24.0));
+      const double sn_n = 1.0 - n2 * (1.0 / 6.0 - n2 * (1.0 / 120.0));  // sin(n) / n
+      u = (cn * u + sn_n * (E * step)).normalized();
+      stale = true;
       if (n <= 1e-15) break;
       continue;
+    }
+    if (stale) {
+      value = f.value(u);
+      stale = false;
     }
     const double slope = std::min(g2.dot(step), 0.0);  // 0 only at a saddle
     double t = 1.0;
@@ -317,12 +330,35 @@ Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& va
     }
     if (!accepted || t * step.norm() <= 1e-15) break;  // t was halved once past the step taken
   }
+  if (stale) value = f.value(u);
   return u;
 }
 
 }  // namespace
 
 namespace {
+
+// Whether u, a descent's end of cost `value` on a tip held to a line, is f's global minimum,
+// by a certificate: every minimiser has w_r angle(u, u_R)^2 <= value (the position term is
+// >= 0), so lies in the cap of radius t = sqrt(value / w_r) about u_R, as u does; where t <
+// pi/2 (the cap is geodesically convex) and f's Riemannian Hessian is positive definite on
+// the whole cap, f has one local minimum there, which the descent found. The Hessian is at
+// least the rotation term's least eigenvalue, w_r 2 t cot t at the cap's edge (2 and
+// 2 theta cot theta at theta from u_R), less 2 w_p L max |r|: the position term's ambient
+// Hessian 2 w_p L^2 (I - e e^T) is positive semi-definite and its gradient -2 w_p L r enters
+// as -(u . gradient) (r: the tip's offset from the line, 1-Lipschitz in the tip, so |r(u)| <=
+// |r(u_R)| + L |u - u_R|). With the weights of an un-powered placement on an under-actuated
+// device (w_r >> w_p) it holds nearly always; a descent then replaces the multistart.
+bool certified_global(const StylusCost& f, double value) noexcept {
+  if (!(f.w_r > 0.0) || !(value >= 0.0)) return false;
+  const double t = std::sqrt(value / f.w_r);
+  if (!(t < 1.5)) return false;
+  const double rotation = t > 1e-8 ? 2.0 * t / std::tan(t) : 2.0;
+  bool lifted;
+  const double r0 = f.set.residual(f.p_R - f.L * f.u_R, lifted).norm();
+  const double position = 2.0 * f.w_p * f.L * (r0 + 2.0 * f.L * std::sin(0.5 * t));
+  return f.w_r * rotation > 1.01 * position;  // (a margin for the rounding of both)
+}
 
 // Newton on the sphere from each of `count` starts: the end of lowest cost, or `fallback`
 // where none is below its cost
@@ -341,8 +377,56 @@ Eigen::Vector3d lowest_descent(const StylusCost& f, const Eigen::Vector3d* start
   return best;
 }
 
-// Newton on the sphere for a tip held to a line (f.set.free), from u_R, u_start, u_extra,
-// the stylus normal to the line and the directions that put the tip on it; the best end
+// The two caps of a tip held to a line within the stylus's reach. With x = (I - e e^T) u and
+// w = p_R's offset from the line, the position term is w_p |w - L x|^2; every minimiser has
+// it at most `value` (the lowest cost found), so |x - x0| <= eps = sqrt(value / w_p) / L,
+// x0 = w / L, and lies within `chord` of one of the directions that put the tip on the line,
+// u0 = x0 +- z0 e (z0 = sqrt(1 - |x0|^2); the sign that of u . e): |u - u0|^2 = |x - x0|^2 +
+// (|u . e| - z0)^2 and ||u . e| - z0| <= (2 |x0| + eps) eps / z0. On such a cap f's
+// Riemannian Hessian is at least 2 w_p L^2 ((z0 - chord)^2 - chord) (the position term: its
+// ambient Hessian's least eigenvalue on the tangent plane is (u . e)^2, its gradient enters as
+// 2 w_p L u . (w - L x) >= -2 w_p L^2 |x - x0|) plus the rotation term's least eigenvalue,
+// w_r min(2, 2 theta cot theta) at the cap's farthest angle theta from u_R. Where that is
+// positive on both caps, each holds at most one local minimum, and the global one is the
+// lower of the two.
+struct LineCaps {
+  Eigen::Vector3d centre[2];
+  double chord = 0.0;
+  bool valid = false;
+};
+
+LineCaps line_caps(const StylusCost& f, const Eigen::Vector3d& w, double value) noexcept {
+  LineCaps caps;
+  if (!(f.w_p > 0.0) || !(value >= 0.0)) return caps;
+  const Eigen::Vector3d x0 = w / f.L;
+  const double r0 = x0.norm();
+  const double z0 = std::sqrt(std::max(0.0, (1.0 - r0) * (1.0 + r0)));
+  if (!(z0 > 1e-3)) return caps;  // the line at the reach's edge or beyond: no certificate
+  const double eps = std::sqrt(value / f.w_p) / f.L;
+  const double k = (2.0 * r0 + eps) / z0;
+  caps.chord = eps * std::sqrt(1.0 + k * k);
+  if (!(caps.chord < 0.5)) return caps;
+  const double position =
+      2.0 * f.w_p * f.L * f.L * ((z0 - caps.chord) * (z0 - caps.chord) - caps.chord);
+  if (!(z0 > caps.chord) || !(position > 0.0)) return caps;
+  for (int i = 0; i < 2; ++i) {
+    const Eigen::Vector3d& e = f.set.free;
+    caps.centre[i] = x0 + (i == 0 ? z0 : -z0) * e;
+    // the farthest angle from u_R on the cap (its geodesic radius 2 asin(chord / 2))
+    const double theta = std::atan2(caps.centre[i].cross(f.u_R).norm(), caps.centre[i].dot(f.u_R)) +
+                         2.0 * std::asin(0.5 * caps.chord);
+    if (!(theta < M_PI - 1e-3)) return caps;
+    const double rotation = theta > 1e-8 ? std::min(2.0, 2.0 * theta / std::tan(theta)) : 2.0;
+    if (!(position + f.w_r * rotation > 0.01 * position)) return caps;  // (a margin)
+  }
+  caps.valid = true;
+  return caps;
+}
+
+// Newton on the sphere for a tip held to a line (f.set.free), from u_start (the last
+// placement's: its end is usually the answer, and certified_global() may show it), u_R,
+// u_extra, the stylus normal to the line and the directions that put the tip on it; the
+// best end
 Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
                            const Eigen::Vector3d& u_extra) noexcept {
   Eigen::Vector3d starts[6];
@@ -357,8 +441,8 @@ Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
     }
     starts[count++] = s;
   };
-  add(f.u_R);
   add(u_start);
+  add(f.u_R);
   add(u_extra);
   bool lifted;
   const Eigen::Vector3d w = f.set.residual(f.p_R, lifted);  // p_R - c0, c0 its nearest point
@@ -370,7 +454,37 @@ Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
     add(w - (we - std::sqrt(disc)) * e);
     add(w - (we + std::sqrt(disc)) * e);
   }
-  return lowest_descent(f, starts, count, f.u_R);
+  // the first start's end, and where a certificate shows the global minimum among the
+  // ends met so far, no further starts
+  Eigen::Vector3d best = f.u_R;
+  double best_value = f.value(f.u_R);
+  Eigen::Vector3d ends[8];
+  int n_ends = 0;
+  auto descend = [&](const Eigen::Vector3d& s) {
+    double value;
+    ends[n_ends++] = sphere_newton(f, s, value);
+    if (value < best_value) {
+      best_value = value;
+      best = ends[n_ends - 1];
+    }
+    return value;
+  };
+  if (count == 0) return best;
+  if (certified_global(f, descend(starts[0]))) return best;
+  const LineCaps caps = line_caps(f, w, best_value);
+  if (caps.valid) {
+    bool found = true;
+    for (int c = 0; c < 2 && found; ++c) {
+      bool in_cap = false;
+      for (int i = 0; i < n_ends && !in_cap; ++i) in_cap = (ends[i] - caps.centre[c]).norm() <= caps.chord;
+      if (in_cap) continue;
+      descend(caps.centre[c]);  // the cap's one local minimum, if the descent stays on it
+      found = (ends[n_ends - 1] - caps.centre[c]).norm() <= caps.chord;
+    }
+    if (found) return best;
+  }
+  for (int i = 1; i < count; ++i) descend(starts[i]);
+  return best;
 }
 
 }  // namespace
