@@ -23,8 +23,28 @@ struct Angle {
   double x, c, s;
 };
 
+// A sphere's position cost (rho - radius)^2 as a function of c: its derivatives P_c and
+// P_cc (rho = sqrt(sa - 2 sb c): drho/dc = -sb / rho), the one-sided cost's where it acts
+void sphere_cost_derivatives(const TiltCost& k, double c, double& P_c, double& P_cc) noexcept {
+  const double rho = std::sqrt(std::max(k.sa - 2.0 * k.sb * c, 0.0));
+  if (!(rho > 0.0)) {  // (the handle within rounding of the sphere's centre at this angle)
+    P_c = P_cc = 0.0;
+    return;
+  }
+  P_c = -2.0 * k.sb * (1.0 - k.radius / rho);
+  P_cc = 2.0 * k.sb * k.sb * k.radius / (rho * rho * rho);
+}
+
 // the position cost's derivatives in phi, g'(phi) and g''(phi), from c = cos(phi), s = sin(phi)
 void position_derivatives(const TiltCost& k, double c, double s, double& g1, double& g2) noexcept {
+  if (k.sphere) {
+    double P_c, P_cc;
+    sphere_cost_derivatives(k, c, P_c, P_cc);
+    if (k.one_sided && !(P_c > 0.0)) P_c = P_cc = 0.0;  // rho >= radius: lifted, no cost
+    g1 = -P_c * s;
+    g2 = P_cc * s * s - P_c * c;
+    return;
+  }
   if (k.one_sided && !(k.b * c > k.a)) {
     g1 = g2 = 0.0;
     return;
@@ -43,6 +63,12 @@ Angle position_minimiser(const TiltCost& k, const Angle& phi_r) noexcept {
     // (1 - c)(1 + c), not 1 - c^2: the sine keeps its relative accuracy near c = +-1
     return Angle{std::acos(c), c, std::sqrt((1.0 - c) * (1.0 + c))};
   };
+  if (k.sphere) {
+    if (!(k.sb > 0.0)) return phi_r;  // the cost does not depend on the angle
+    const double c0 = (k.sa - k.radius * k.radius) / (2.0 * k.sb);  // rho = radius there
+    if (k.one_sided && phi_r.c <= c0) return phi_r;  // lifted already: zero cost
+    return from_cosine(c0);
+  }
   if (k.one_sided) {
     if (!(k.b * phi_r.c > k.a)) return phi_r;  // already at zero cost
     return k.b > 0.0 ? from_cosine(k.a / k.b) : phi_r;
@@ -131,14 +157,26 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
   // p2 c^2 + p1 c (one-sided: that where b c > a, else 0) with p2 >= 0, so f'' is a concave
   // function of c = cos(phi) (0 on a one-sided cost's flat part) and, c falling with phi,
   // f'' is - then + then - along the bracket; f' falls from f'(lo) < 0 on the first part,
-  // rises through one root on the second and falls to f'(hi) > 0 on the third.
+  // rises through one root on the second and falls to f'(hi) > 0 on the third. A sphere's
+  // g'' is concave in c too: its second derivative in c is -2 radius sb^2 (4 sa^2 - sa sb c
+  // + sb^2 c^2 - 15 sb^2) / rho^7, and the bracket is >= 0 for |c| <= 1 because sa >= 2 sb
+  // (its least, at c = 1, is 4 sa^2 - sa sb - 14 sb^2 >= 0); a one-sided sphere's bracket
+  // lies where the tip would be inside, where g is the bilateral one's.
   // Start at the minimiser of the two terms' quadratic models about their minimisers (g's
   // curvature at its minimiser, from the side where it acts): with the weights far apart, as
   // on an under-actuated device, it is within rounding of the root
-  const double p2 = k.one_sided ? k.b * k.b : k.p2;
-  const double p1 = k.one_sided ? -2.0 * k.a * k.b : k.p1;
   const double c0 = phi0.c, s0 = phi0.s;
-  const double c_p = w_p * std::max(0.0, 2.0 * p2 * s0 * s0 - (2.0 * p2 * c0 + p1) * c0);
+  double g2_0;  // g'' at phi0, from the side where the cost acts
+  if (k.sphere) {
+    double P_c, P_cc;
+    sphere_cost_derivatives(k, c0, P_c, P_cc);
+    g2_0 = P_cc * s0 * s0 - P_c * c0;
+  } else {
+    const double p2 = k.one_sided ? k.b * k.b : k.p2;
+    const double p1 = k.one_sided ? -2.0 * k.a * k.b : k.p1;
+    g2_0 = 2.0 * p2 * s0 * s0 - (2.0 * p2 * c0 + p1) * c0;
+  }
+  const double c_p = w_p * std::max(0.0, g2_0);
   const double c_r = 2.0 * w_r;
   // strictly inside: at an end f' may vanish without a minimum there (the stylus exactly
   // along the axis is a saddle of the tilt)

@@ -25,10 +25,16 @@ bool isotropic_blocks(const Vector6& w, double& w_p, double& w_r) noexcept;
 /// The position cost of a stylus as a function of c = cos(phi), phi the angle between its
 /// tip-to-handle direction and a reference axis: p2 c^2 + p1 c (+ a constant). `one_sided`:
 /// zero where b c <= a (a probe's tip in front of its plane), else (a - b c)^2.
+/// `sphere`: a tip held to a sphere of radius `radius`, the axis from its centre to the
+/// handle: (rho - radius)^2 with rho = sqrt(sa - 2 sb c) the distance from the centre of
+/// the point `length` below the handle (sa = |v|^2 + L^2, sb = L |v|, v the handle's offset
+/// from the centre); `one_sided`: zero where rho >= radius (the tip lifted off).
 struct TiltCost {
   double p2 = 0.0, p1 = 0.0;
   bool one_sided = false;
   double a = 0.0, b = 0.0;
+  bool sphere = false;
+  double sa = 0.0, sb = 0.0, radius = 0.0;
 };
 
 /// A direction computed only where it is used: a reference to a callable returning it (a

@@ -189,7 +189,8 @@ SurfaceProbe::SurfaceProbe(std::shared_ptr<const Surface> surface, double length
                 surface_limit(checked_surface(surface), unilateral, false),
                 surface_limit(*surface, unilateral, true), surface_home(*surface, unilateral),
                 positive_length("length", length)),
-      surface_(std::move(surface)), length_(length), unilateral_(unilateral) {
+      surface_(std::move(surface)), sphere_(dynamic_cast<const Sphere*>(surface_.get())),
+      length_(length), unilateral_(unilateral) {
   if (unilateral) set_contact_joint(2);
 }
 
@@ -226,6 +227,58 @@ void SurfaceProbe::seed(const Pose& target, const Vector6& w, JointVector& theta
   theta.segment<3>(wrist) =
       wrist_angles(f.B, target.linear(), Eigen::Vector3d(theta.segment<3>(wrist)));
   tilt_if_positions_only(w, length_, theta, wrist);
+}
+
+bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector& start,
+                         JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
+  double w_p, w_r;
+  if (!sphere_ || !detail::isotropic_blocks(w, w_p, w_r)) return false;
+  // The tip nearest the point q = p_R - L u below the handle is the sphere's point along q's
+  // direction from the centre (or q itself, lifted, when one-sided and outside), so the
+  // position cost depends on u only through its angle from v, the centre-to-handle
+  // direction: one angle, as for a pivot (the stylus turns toward v)
+  const Eigen::Vector3d& c = sphere_->center();
+  const Eigen::Vector3d v = target.translation() - c;
+  const double vn = v.norm();
+  if (!(vn > 1e-9 * length_)) return false;
+  detail::TiltCost cost;
+  cost.sphere = true;
+  cost.sa = vn * vn + length_ * length_;
+  cost.sb = length_ * vn;
+  cost.radius = sphere_->radius();
+  cost.one_sided = unilateral_;
+  const int wrist = unilateral_ ? 3 : 2;
+  const auto start_direction = [&] {
+    Pose T0;
+    forward(start.data(), T0);
+    return Eigen::Vector3d(-T0.linear().col(2));
+  };
+  Eigen::Matrix3d R;
+  Eigen::Vector3d turn;
+  detail::tilt_about_axis(target.linear(), v / vn, cost, w_p, w_r,
+                          detail::LazyDirection(start_direction), R, turn);
+  const Eigen::Vector3d q = target.translation() + length_ * R.col(2);  // p_R - L u
+  Eigen::Vector3d point;
+  const Eigen::Vector2d uv = sphere_->closest_point(q, point);
+  if (!((q - c).norm() > 1e-9 * cost.radius)) return false;
+  theta.resize(dof());
+  // u is periodic: the turn nearest the start's
+  theta[0] = uv[0] + 2.0 * M_PI * detail::round_half_away((start[0] - uv[0]) / (2.0 * M_PI));
+  theta[1] = uv[1];
+  if (unilateral_) {
+    // in contact the tip sits exactly on the sphere, the lift-off joint on its bound
+    const double lift = (q - c).norm() - cost.radius;
+    theta[2] = lift > 1e-12 * length_ ? lift : 0.0;
+  }
+  SurfaceDerivatives d;
+  sphere_->derivatives(uv[0], uv[1], 2, d);
+  SurfaceFrame f;
+  surface_frame(*sphere_, uv[0], uv[1], d, f);
+  theta.segment<3>(wrist) =
+      wrist_angles(f.B, R, Eigen::Vector3d(start.segment<3>(wrist)));
+  forward_jacobian(theta.data(), T, J);
+  e = pose_error(target, T);
+  return true;
 }
 
 // --- CurveGuide --------------------------------------------------------------------------

@@ -240,9 +240,15 @@ class SurfaceProbe final : public Mechanism {
   /// weighs positions only: with the stylus exactly along the error the position-only
   /// cost is stationary but not least, and Gauss-Newton would not leave it).
   void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept override;
+  /// On a Sphere with weights isotropic per block: the weighted optimum in closed form (the
+  /// stylus turns in the plane of the handle's stylus and the centre-to-handle direction,
+  /// one angle; docs/theory.md, section 4). On every other surface false: Gauss-Newton.
+  bool place(const Pose& target, const Vector6& w, const JointVector& start,
+             JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
  private:
   std::shared_ptr<const Surface> surface_;
+  const Sphere* sphere_ = nullptr;  // surface_ when it is a Sphere
   double length_;
   bool unilateral_;
 };
