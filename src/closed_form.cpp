@@ -608,6 +608,98 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
   return lowest_descent(f, starts, count, starts[0]);
 }
 
+bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
+                         const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+                         double& s, Eigen::Vector3d& u) noexcept {
+  const double L = length;
+  const double lo = curve.lower(), hi = curve.upper();
+  if (!(s >= lo && s <= hi) || !(w_p > 0.0)) return false;
+  u.normalize();
+  const auto cost = [&](double s_, const Eigen::Vector3d& u_) {
+    const Eigen::Vector3d r = curve.evaluate(s_) + L * u_ - p_R;
+    const double ang = std::atan2(u_.cross(u_R).norm(), u_.dot(u_R));
+    return w_p * r.squaredNorm() + w_r * ang * ang;
+  };
+  for (int it = 0; it < 12; ++it) {
+    CurveDerivatives d;
+    curve.derivatives(s, 2, d);
+    const Eigen::Vector3d C1 = d.col(1), C2 = d.col(2);
+    const Eigen::Vector3d r = d.col(0) + L * u - p_R;  // the handle's position error
+    double ang, h, dh;
+    acos_squared_terms(u.dot(u_R), u.cross(u_R).norm(), ang, h, dh);
+    // the gradient and Hessian in u as a function on R^3, then on the sphere
+    const Eigen::Vector3d g_u = 2.0 * w_p * L * r - 2.0 * w_r * h * u_R;
+    Eigen::Matrix<double, 3, 2> E;
+    E.col(0) = any_orthogonal(u);
+    E.col(1) = u.cross(E.col(0));
+    Eigen::Vector3d g;
+    g << 2.0 * w_p * r.dot(C1), E.transpose() * g_u;
+    Eigen::Matrix3d H;
+    H(0, 0) = 2.0 * w_p * (C1.squaredNorm() + r.dot(C2));
+    const Eigen::Vector2d H_su = 2.0 * w_p * L * (E.transpose() * C1);
+    H(0, 1) = H(1, 0) = H_su[0];
+    H(0, 2) = H(2, 0) = H_su[1];
+    const Eigen::Vector2d Ru = E.transpose() * u_R;
+    Eigen::Matrix2d H_uu = (2.0 * w_p * L * L - u.dot(g_u)) * Eigen::Matrix2d::Identity();
+    H_uu -= 2.0 * w_r * dh * Ru * Ru.transpose();
+    H.bottomRightCorner<2, 2>() = H_uu;
+    // Newton's step where H is positive definite; else the saddle-free step (each
+    // eigendirection's Newton step with |lambda|: descending along negative curvature, as
+    // where the stylus stands square to the curve and the position cost is flat to second
+    // order along it), with a backtracking line search on the cost
+    Eigen::Vector3d step;
+    const Eigen::LLT<Eigen::Matrix3d> llt(H);
+    const bool newton = llt.info() == Eigen::Success;
+    if (newton) {
+      step = -llt.solve(g);
+    } else {
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+      eig.computeDirect(H);
+      const Eigen::Vector3d lam = eig.eigenvalues().cwiseAbs();
+      const double floor = 1e-9 * std::max(lam.maxCoeff(), w_p * L * L);
+      const Eigen::Vector3d gv = eig.eigenvectors().transpose() * g;
+      step = -eig.eigenvectors() * gv.cwiseQuotient(lam.cwiseMax(floor));
+    }
+    if (!step.allFinite()) return false;
+    // at most a tenth of the stylus along the curve and 0.2 rad of turn at a time
+    const double speed = C1.norm();
+    double scale = 1.0;
+    if (std::abs(step[0]) * speed > 0.1 * L) scale = 0.1 * L / (std::abs(step[0]) * speed);
+    if (step.tail<2>().norm() * scale > 0.2) scale = 0.2 / step.tail<2>().norm();
+    step *= scale;
+    const auto moved_to = [&](double t, double& s_t, Eigen::Vector3d& u_t) {
+      s_t = s + t * step[0];
+      const double n = t * step.tail<2>().norm();
+      u_t = n > 0.0 ? Eigen::Vector3d((std::cos(n) * u + (std::sin(n) / n) * t *
+                                      (E * step.tail<2>())).normalized())
+                    : u;
+    };
+    double s_new;
+    Eigen::Vector3d u_new;
+    if (newton && scale == 1.0) {
+      moved_to(1.0, s_new, u_new);
+    } else {
+      const double f0 = w_p * r.squaredNorm() + w_r * ang * ang;
+      const double slope = g.dot(step);  // < 0: a descent direction
+      double t = 1.0;
+      bool accepted = false;
+      for (int k = 0; k < 30 && !accepted; ++k, t *= 0.5) {
+        moved_to(t, s_new, u_new);
+        accepted = s_new >= lo && s_new <= hi && cost(s_new, u_new) <= f0 + 1e-4 * t * slope;
+      }
+      if (!accepted) return false;
+    }
+    if (!(s_new >= lo && s_new <= hi)) return false;  // at a stop: Gauss-Newton's active set
+    const double moved = std::abs(s_new - s) * speed, n = (u_new - u).norm();
+    s = s_new;
+    u = u_new;
+    // converged: a full Newton step that moved the tip and the stylus by rounding noise (the
+    // next would be its square)
+    if (newton && scale == 1.0 && moved <= 1e-12 * L && n <= 1e-12) return true;
+  }
+  return false;
+}
+
 namespace {
 
 // the direction of q, atan2(q.y, q.x), with its cosine and sine

@@ -14,6 +14,7 @@
 
 #include <cmath>
 
+#include "virtmech/geometry.hpp"
 #include "virtmech/types.hpp"
 
 namespace virtmech::detail {
@@ -92,6 +93,20 @@ struct TipSet {
 Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, double length,
                                  const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u_start,
                                  double w_p, double w_r) noexcept;
+
+/// The stylus of a probe whose tip is held to a curve C (a CurveGuide): the parameter s and
+/// the tip-to-handle direction u at the local minimum of
+///   w_p |C(s) + L u - p_R|^2 + w_r angle(u, u_R)^2
+/// reached by Newton's method on R x S^2 with exact second derivatives (C'' included) from
+/// (s, u) as given, u_R = -R_R z (where the Hessian is not positive definite, the
+/// saddle-free step with a backtracking line search; steps capped at a tenth of the stylus
+/// and 0.2 rad). The roll about the stylus drops out as for a line. Returns false (s and u
+/// then undefined) where s would leave the curve's bounds (a stop: the active set is
+/// Gauss-Newton's) or no full Newton step at rounding level ends 12 steps; the caller then
+/// runs Gauss-Newton.
+bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
+                         const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+                         double& s, Eigen::Vector3d& u) noexcept;
 
 /// The angle x minimising -a cos(x - theta_p) + w_r acos(c + b cos(x - theta_o))^2 (a, b,
 /// w_r >= 0): a position term least at theta_p and a rotation angle least at theta_o, as

@@ -306,6 +306,26 @@ void CurveGuide::seed(const Pose& target, const Vector6& w, JointVector& theta) 
   tilt_if_positions_only(w, length_, theta, 1);
 }
 
+bool CurveGuide::place(const Pose& target, const Vector6& w, const JointVector& start,
+                       JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
+  double w_p, w_r;
+  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+  double s = start[0];
+  Eigen::Vector3d u = (base_ * euler_xyz(start.data() + 1)).col(2);  // tip to handle
+  if (!detail::curve_stylus_newton(*curve_, target.translation(), -target.linear().col(2),
+                                   length_, w_p, w_r, s, u)) {
+    return false;
+  }
+  Eigen::Vector3d turn;
+  const Eigen::Matrix3d R = detail::turn_stylus(target.linear(), u, turn);
+  theta.resize(4);
+  theta[0] = s;
+  theta.segment<3>(1) = wrist_angles(base_, R, Eigen::Vector3d(start.segment<3>(1)));
+  forward_jacobian(theta.data(), T, J);
+  e = pose_error(target, T);
+  return true;
+}
+
 // --- HandlePath --------------------------------------------------------------------------
 
 HandlePath::HandlePath(std::shared_ptr<const Curve> curve, const Eigen::Vector3d& normal,

@@ -270,6 +270,11 @@ class CurveGuide final : public Mechanism {
   const Eigen::Vector3d& normal() const noexcept { return normal_; }
   void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept override;
   void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept override;
+  /// With weights isotropic per block: Newton's method with exact second derivatives on
+  /// the curve's parameter and the stylus's direction (the roll drops out), from the warm
+  /// start; false where it is not the way (see docs/theory.md, section 4): Gauss-Newton.
+  bool place(const Pose& target, const Vector6& w, const JointVector& start,
+             JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
  private:
   std::shared_ptr<const Curve> curve_;
