@@ -417,47 +417,78 @@ Eigen::Vector3d lowest_descent(const StylusCost& f, const Eigen::Vector3d* start
 
 // The two caps of a tip held to a line within the stylus's reach. With x = (I - e e^T) u and
 // w = p_R's offset from the line, the position term is w_p |w - L x|^2; every minimiser has
-// it at most `value` (the lowest cost found), so |x - x0| <= eps = sqrt(value / w_p) / L,
-// x0 = w / L, and lies within `chord` of one of the directions that put the tip on the line,
-// u0 = x0 +- z0 e (z0 = sqrt(1 - |x0|^2); the sign that of u . e): |u - u0|^2 = |x - x0|^2 +
-// (|u . e| - z0)^2 and ||u . e| - z0| <= (2 |x0| + eps) eps / z0. On such a cap f's
-// Riemannian Hessian is at least 2 w_p L^2 ((z0 - chord)^2 - chord) (the position term: its
-// ambient Hessian's least eigenvalue on the tangent plane is (u . e)^2, its gradient enters as
-// 2 w_p L u . (w - L x) >= -2 w_p L^2 |x - x0|) plus the rotation term's least eigenvalue,
-// w_r min(2, 2 theta cot theta) at the cap's farthest angle theta from u_R. Where that is
-// positive on both caps, each holds at most one local minimum, and the global one is the
-// lower of the two.
-struct LineCaps {
-  Eigen::Vector3d centre[2];
-  double chord = 0.0;
-  bool valid = false;
-};
+// it at most `value` (the lowest cost found), so its x lies in the disk |x - x0| <= eps, x0 =
+// w / L, eps = sqrt(value / w_p) / L. Where that disk is inside the unit disk (|x0| + eps <
+// 1), it lifts to two caps of the sphere, u = x + s z(x) e, z = sqrt(1 - |x|^2), s = +-1, each
+// a graph over the disk: in that chart (x the coordinates) the position term is exactly
+// quadratic, its Hessian 2 w_p L^2 I, and the rotation term phi(c) = acos(c)^2 of c = u . u_R
+// = x . a + s z b (u_R = a + b e) has the Hessian phi'' grad c grad c^T + phi' Hess c: the
+// first positive semi-definite (phi is convex), the second phi' (-s b)(I / z + x x^T / z^3)
+// with phi' = -2 theta / sin(theta), positive semi-definite where s b >= 0 and otherwise at
+// least -2 (theta / sin theta) |b| / z_min^3 (z >= z_min = sqrt(1 - (|x0| + eps)^2)). With
+// theta / sin(theta) <= pi / sin(psi), psi = min(2 asin(delta / 2), pi / 2) and delta = |x0 +
+// a| - eps the least chord from -u_R (the projection is 1-Lipschitz), f is strictly convex
+// on a cap whose bound holds: the cap (a convex disk in the chart) holds at most one local
+// minimum. Where both caps are convex the global minimum is the lower of their minima.
+//
+// Where the line is beyond the reach (|x0| > 1, so x0 . w_hat >= |x0| - eps on the disk),
+// every minimiser lies within the chord rho = sqrt(2 (1 - |x0| + eps)) of w_hat = w / |w|
+// (|u - w_hat|^2 = 2 (1 - x . w_hat)): one cap. There the position term's Riemannian Hessian
+// is at least 2 w_p L (u . r) (its ambient Hessian is positive semi-definite; its gradient
+// -2 w_p L r, r = w - L x, enters as -(u . gradient)) and u . r = u . w - L |x|^2 >= |w| (1 -
+// rho^2 / 2) - L; the rotation term's is at least w_r min(2, 2 theta cot theta) at the cap's
+// farthest angle theta from u_R. Where their sum is positive on a geodesically convex cap,
+// it holds one local minimum.
+
+// the one cap about w_hat of a line beyond the stylus's reach (above)
+LineCaps beyond_reach_cap(const StylusCost& f, const Eigen::Vector3d& w, LineCaps caps) noexcept {
+  const double r0 = caps.x0.norm();
+  if (!(r0 > 1.0)) return caps;
+  caps.rho = std::sqrt(2.0 * std::max(0.0, 1.0 - r0 + caps.eps));
+  caps.centre[0] = w / w.norm();
+  // the cap's geodesic radius 2 asin(rho / 2) below pi / 4: rho below 2 sin(pi / 8)
+  if (!(caps.rho < 0.7653668647301796)) return caps;
+  const double position =
+      2.0 * f.w_p * f.L * f.L * (r0 * (1.0 - 0.5 * caps.rho * caps.rho) - 1.0);
+  double rotation = 0.0;  // its least eigenvalue is >= 0 where the cap is within pi / 2 of u_R:
+  // cos angle(centre, u_R) >= sin(radius) = rho sqrt(1 - rho^2 / 4)
+  if (!(caps.centre[0].dot(f.u_R) >= caps.rho * std::sqrt(1.0 - 0.25 * caps.rho * caps.rho))) {
+    const double theta = std::atan2(caps.centre[0].cross(f.u_R).norm(),
+                                    caps.centre[0].dot(f.u_R)) +
+                         2.0 * std::asin(0.5 * caps.rho);
+    if (!(theta < M_PI - 1e-3)) return caps;
+    rotation = f.w_r * std::min(2.0, 2.0 * theta / std::tan(theta));
+  }
+  if (!(position + rotation > 0.01 * std::abs(position))) return caps;  // (a margin)
+  caps.count = 1;
+  return caps;
+}
 
 LineCaps line_caps(const StylusCost& f, const Eigen::Vector3d& w, double value) noexcept {
   LineCaps caps;
   if (!(f.w_p > 0.0) || !(value >= 0.0)) return caps;
-  const Eigen::Vector3d x0 = w / f.L;
-  const double r0 = x0.norm();
-  const double z0 = std::sqrt(std::max(0.0, (1.0 - r0) * (1.0 + r0)));
-  if (!(z0 > 1e-3)) return caps;  // the line at the reach's edge or beyond: no certificate
-  const double eps = std::sqrt(value / f.w_p) / f.L;
-  const double k = (2.0 * r0 + eps) / z0;
-  caps.chord = eps * std::sqrt(1.0 + k * k);
-  if (!(caps.chord < 0.5)) return caps;
-  const double position =
-      2.0 * f.w_p * f.L * f.L * ((z0 - caps.chord) * (z0 - caps.chord) - caps.chord);
-  if (!(z0 > caps.chord) || !(position > 0.0)) return caps;
+  const Eigen::Vector3d& e = f.set.free;
+  caps.x0 = w / f.L;
+  caps.eps = std::sqrt(value / f.w_p) / f.L;
+  const double r0 = caps.x0.norm(), reach = r0 + caps.eps;
+  if (!(reach < 1.0)) return beyond_reach_cap(f, w, caps);
+  const double z_min = std::sqrt((1.0 - reach) * (1.0 + reach));
+  const double z0 = std::sqrt((1.0 - r0) * (1.0 + r0));
+  const double b = f.u_R.dot(e);
+  const double position = 2.0 * f.w_p * f.L * f.L;
   for (int i = 0; i < 2; ++i) {
-    const Eigen::Vector3d& e = f.set.free;
-    caps.centre[i] = x0 + (i == 0 ? z0 : -z0) * e;
-    // the farthest angle from u_R on the cap (its geodesic radius 2 asin(chord / 2))
-    const double theta = std::atan2(caps.centre[i].cross(f.u_R).norm(), caps.centre[i].dot(f.u_R)) +
-                         2.0 * std::asin(0.5 * caps.chord);
-    if (!(theta < M_PI - 1e-3)) return caps;
-    const double rotation = theta > 1e-8 ? std::min(2.0, 2.0 * theta / std::tan(theta)) : 2.0;
-    if (!(position + f.w_r * rotation > 0.01 * position)) return caps;  // (a margin)
+    const double s = i == 0 ? 1.0 : -1.0;
+    caps.centre[i] = caps.x0 + s * z0 * e;
+    if (s * b >= 0.0) continue;  // the rotation term convex in the chart
+    const double delta = (caps.x0 + f.u_R - b * e).norm() - caps.eps;
+    if (!(delta > 0.0)) return caps;  // -u_R may lie on the cap
+    // sin(psi) = sin(2 asin(delta / 2)) = delta sqrt(1 - delta^2 / 4) below delta = sqrt(2)
+    const double sin_psi = delta < M_SQRT2 ? delta * std::sqrt(1.0 - 0.25 * delta * delta) : 1.0;
+    const double rotation =
+        2.0 * f.w_r * (M_PI / sin_psi) * std::abs(b) / (z_min * z_min * z_min);
+    if (!(rotation < 0.99 * position)) return caps;  // (a margin for rounding)
   }
-  caps.valid = true;
+  caps.count = 2;
   return caps;
 }
 
@@ -510,14 +541,14 @@ Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
   if (count == 0) return best;
   if (certified_global(f, descend(starts[0]))) return best;
   const LineCaps caps = line_caps(f, w, best_value);
-  if (caps.valid) {
+  if (caps.count > 0) {
     bool found = true;
-    for (int c = 0; c < 2 && found; ++c) {
+    for (int c = 0; c < caps.count && found; ++c) {
       bool in_cap = false;
-      for (int i = 0; i < n_ends && !in_cap; ++i) in_cap = (ends[i] - caps.centre[c]).norm() <= caps.chord;
+      for (int i = 0; i < n_ends && !in_cap; ++i) in_cap = cap_holds(caps, c, ends[i], e);
       if (in_cap) continue;
       descend(caps.centre[c]);  // the cap's one local minimum, if the descent stays on it
-      found = (ends[n_ends - 1] - caps.centre[c]).norm() <= caps.chord;
+      found = cap_holds(caps, c, ends[n_ends - 1], e);
     }
     if (found) return best;
   }
@@ -558,6 +589,19 @@ Eigen::Vector3d tilt_to_plane_or_point(const Eigen::Vector3d& point, const Eigen
 }
 
 }  // namespace
+
+bool handle_cap_certified(const TipSet& line, const Eigen::Vector3d& p_R,
+                          const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+                          double value) noexcept {
+  return certified_global(StylusCost{line, p_R, u_R, length, w_p, w_r}, value);
+}
+
+LineCaps line_caps(const TipSet& line, const Eigen::Vector3d& p_R, const Eigen::Vector3d& u_R,
+                   double length, double w_p, double w_r, double value) noexcept {
+  bool lifted;
+  return line_caps(StylusCost{line, p_R, u_R, length, w_p, w_r}, line.residual(p_R, lifted),
+                   value);
+}
 
 Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, double length,
                                  const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u_start,

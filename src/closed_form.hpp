@@ -94,6 +94,40 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
                                  const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u_start,
                                  double w_p, double w_r) noexcept;
 
+/// The certificates that end a line-held stylus's search early (docs/theory.md, section 4),
+/// for the cost f of stylus_direction() with the tip held to `line` (a TipSet with `free`
+/// set) and `value` >= its global minimum (the lowest cost found). Every minimiser lies in
+/// the certificate's caps, and f has at most one local minimum on each: the caps about the
+/// directions that put the tip on the line (count 2: u = x + s z e with z = sqrt(1 -
+/// |x|^2), s = +1 for cap 0 and -1 for cap 1, and |x - x0| <= eps, x = (I - e e^T) u),
+/// or with the line beyond the stylus's reach one cap of chord `rho` about `centre[0]`
+/// (count 1); count 0 where the bound fails.
+struct LineCaps {
+  Eigen::Vector3d centre[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
+  double eps = 0.0;
+  double rho = -1.0;  //!< the one cap's chord beyond the reach; -1 for two caps
+  int count = 0;      //!< 0: no certificate
+};
+
+/// u (unit) lies on cap i of `caps`; e the line's direction.
+inline bool cap_holds(const LineCaps& caps, int i, const Eigen::Vector3d& u,
+                      const Eigen::Vector3d& e) noexcept {
+  if (caps.rho >= 0.0) return (u - caps.centre[0]).norm() <= caps.rho;
+  const double z = u.dot(e);
+  return (i == 0 ? z > 0.0 : z < 0.0) && (u - z * e - caps.x0).norm() <= caps.eps;
+}
+
+/// The caps above for a tip held to `line` (the handle at p_R, its stylus direction u_R).
+LineCaps line_caps(const TipSet& line, const Eigen::Vector3d& p_R, const Eigen::Vector3d& u_R,
+                   double length, double w_p, double w_r, double value) noexcept;
+
+/// Whether the cap of angle sqrt(value / w_r) about u_R, which holds every minimiser, is
+/// one where f is strictly geodesically convex (so holds exactly one local minimum).
+bool handle_cap_certified(const TipSet& line, const Eigen::Vector3d& p_R,
+                          const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+                          double value) noexcept;
+
 /// The stylus of a probe whose tip is held to a curve C (a CurveGuide): the parameter s and
 /// the tip-to-handle direction u at the local minimum of
 ///   w_p |C(s) + L u - p_R|^2 + w_r angle(u, u_R)^2

@@ -240,7 +240,7 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
   const Eigen::Vector3d& c = sphere_->center();
   const Eigen::Vector3d v = target.translation() - c;
   const double vn = v.norm();
-  if (!(vn > 1e-9 * length_)) return false;
+  if (!(vn <= 1e300)) return false;  // (NaN or infinite)
   detail::TiltCost cost;
   cost.sphere = true;
   cost.sa = vn * vn + length_ * length_;
@@ -253,10 +253,15 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
     forward(start.data(), T0);
     return Eigen::Vector3d(-T0.linear().col(2));
   };
-  Eigen::Matrix3d R;
-  Eigen::Vector3d turn;
-  detail::tilt_about_axis(target.linear(), v / vn, cost, w_p, w_r,
-                          detail::LazyDirection(start_direction), R, turn);
+  Eigen::Matrix3d R = target.linear();
+  if (vn > 1e-9 * length_) {
+    Eigen::Vector3d turn;
+    detail::tilt_about_axis(target.linear(), v / vn, cost, w_p, w_r,
+                            detail::LazyDirection(start_direction), R, turn);
+  }
+  // else the handle at the centre: every stylus direction puts the tip's nearest point at
+  // the same distance, so the rotation term alone decides (R = R_R) and only a
+  // rounding-level position term is left out
   const Eigen::Vector3d q = target.translation() + length_ * R.col(2);  // p_R - L u
   Eigen::Vector3d point;
   const Eigen::Vector2d uv = sphere_->closest_point(q, point);

@@ -170,9 +170,10 @@ def test_placement_equals_scipys_minimum_of_the_weighted_pose_error(rng):
 @pytest.mark.parametrize("weights", ["nearest", "unpowered", "full"])
 def test_curve_guide_newton_reaches_the_gauss_newton_optimum(rng, weights):
     """A CurveGuide with weights isotropic per block is placed by Newton's method with exact
-    second derivatives (no Gauss-Newton iterations): from the same warm start it ends where
-    Gauss-Newton run to convergence ends, a fixed point of it (to 1e-9 in the metric the
-    cost sees), and never above SciPy's local minimum from that start."""
+    second derivatives (no Gauss-Newton iterations). It ends at a local optimum, a fixed
+    point of Gauss-Newton (to 1e-9 in the metric the cost sees), and from a warm start near
+    the optimum never above Gauss-Newton's end from that start nor SciPy's local minimum
+    (from far starts two local methods may end in different basins, either the lower)."""
     m = vm.CurveGuide(letter_curve(), L, normal=[0, 0, 1])
     eps = 1e-6 * np.array([1, 1, 1, L * L, L * L, L * L])
     W = {"nearest": np.array([1.0, 1, 1, 0, 0, 0]) + eps,

@@ -9,13 +9,16 @@ reference is independent: the cost reduced to the stylus direction u on the unit
 
     f(u) = w_p dist(p_R - L u, set)^2 + w_r angle(u, u_R)^2,  u_R = -R_R z,
 
-minimised by a dense Fibonacci grid of directions, its best points polished by SciPy."""
+minimised by a dense Fibonacci grid of directions, each of its local minima on the grid
+polished by SciPy (two minima of nearly equal cost, such as the two directions that put the
+tip on a line, are both polished)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
+from scipy.spatial import cKDTree
 
 import virtmech as vm
 
@@ -69,6 +72,9 @@ def fibonacci_sphere(n):
 
 
 GRID = fibonacci_sphere(20000)  # neighbours about 1.5 degrees apart
+_distance, _index = cKDTree(GRID).query(GRID, k=9)
+NEIGHBOURS = _index[:, 1:]  # each point's eight nearest
+SPACING = float(_distance[:, 1:].max())  # every direction lies about this near a grid point
 
 
 def residuals(offset, u, p_R, u_R, w_p, w_r):
@@ -82,7 +88,19 @@ def residuals(offset, u, p_R, u_R, w_p, w_r):
 def reference_minimum(offset, p_R, u_R, w_p, w_r):
     values = (residuals(offset, GRID, p_R, u_R, w_p, w_r) ** 2).sum(axis=1)
     best = float(values.min())
-    for i in np.argsort(values)[:3]:
+    # The grid's strict local minima (a plateau's points need no polish) that may hold the
+    # global one: the grid point nearest a minimiser lies within SPACING of it, so above the
+    # minimum by at most half of f's largest curvature times SPACING^2 (the curvature at most
+    # 2 w_r from the angle, 2 w_p L (L + |r|) from the tip, |r| <= |p_R - POINT| + L), with
+    # a factor of four to spare.
+    curvature = 2.0 * w_r + 2.0 * w_p * L * (2.0 * L + np.linalg.norm(p_R - POINT))
+    local = np.flatnonzero((values < values[NEIGHBOURS].min(axis=1))
+                           & (values <= best + 2.0 * curvature * SPACING**2))
+    chosen = [int(np.argmin(values))]  # and the lowest of each group 0.3 rad apart
+    for i in local[np.argsort(values[local])]:
+        if len(chosen) < 4 and np.linalg.norm(GRID[chosen] - GRID[i], axis=1).min() > 0.3:
+            chosen.append(int(i))
+    for i in chosen:
         g = GRID[i]  # polished in its tangent plane: u = g + a t1 + b t2, normalised
         t1 = np.cross(g, [1.0, 0.0, 0.0] if abs(g[0]) < 0.9 else [0.0, 1.0, 0.0])
         t1 /= np.linalg.norm(t1)
@@ -151,3 +169,23 @@ def test_a_placement_followed_along_a_path_stays_global(name):
         c_ref = reference_minimum(offset, p_R, -R[:, 2], W[0], W[3])
         assert cost(m, T, W, r.theta) <= c_ref * (1.0 + 1e-9) + 1e-15, k
         theta = r.theta
+
+
+@pytest.mark.parametrize("name", sorted(SETS))
+@pytest.mark.parametrize("weights", sorted(WEIGHTS))
+def test_the_handle_at_the_sphere_centre_is_placed(name, weights):
+    """The handle at the sphere's centre (every stylus direction puts the tip equally far
+    from the sphere, so the rotation term alone decides), and for the line guide at the
+    same point: placed without Gauss-Newton, at the global optimum."""
+    make, offset = SETS[name]
+    m = make()
+    W = WEIGHTS[weights]
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        R = vm.so3_exp(rng.normal(size=3))
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, CENTRE
+        c_ref = reference_minimum(offset, CENTRE, -R[:, 2], W[0], W[3])
+        r = vm.track(m, T, random_start(m, rng), W)
+        assert r.iterations == 0 and r.converged
+        assert cost(m, T, W, r.theta) <= c_ref * (1.0 + 1e-9) + 1e-15

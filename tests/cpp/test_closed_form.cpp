@@ -1,0 +1,214 @@
+// The certificates that end a line-held stylus's search early (src/closed_form.hpp): on
+// random problems, every direction whose cost is at most the certified value lies in a
+// certified cap, and on each cap the cost is strictly convex, checked with Hessians taken by
+// finite differences of the cost written out here on its own (in the chart the two caps
+// use, and on the sphere through its exponential map for the others).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Eigenvalues>
+
+#include "../../src/closed_form.hpp"
+
+namespace {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+using virtmech::detail::LineCaps;
+using virtmech::detail::TipSet;
+
+struct Problem {
+  TipSet line;
+  Vector3d p_R, u_R;
+  double L = 0.1, w_p = 1.0, w_r = 1.0;
+
+  // w_p |tip's offset from the line|^2 + w_r angle(u, u_R)^2, tip = p_R - L u
+  double cost(const Vector3d& u_in) const {
+    const Vector3d u = u_in.normalized();
+    Vector3d r = p_R - L * u - line.point;
+    r -= r.dot(line.free) * line.free;
+    const double angle = std::atan2(u.cross(u_R).norm(), u.dot(u_R));
+    return w_p * r.squaredNorm() + w_r * angle * angle;
+  }
+};
+
+Vector3d random_unit(std::mt19937& rng) {
+  std::normal_distribution<double> n;
+  return Vector3d(n(rng), n(rng), n(rng)).normalized();
+}
+
+// two unit vectors completing e to an orthonormal basis
+void basis(const Vector3d& e, Vector3d& a, Vector3d& b) {
+  a = (std::abs(e.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY()).cross(e).normalized();
+  b = e.cross(a);
+}
+
+// the least eigenvalue of the Hessian of g: R^2 -> R at 0, by central differences of step h
+template <typename G>
+double least_curvature(const G& g, double h) {
+  const double g0 = g(Vector2d::Zero());
+  Eigen::Matrix2d H;
+  for (int i = 0; i < 2; ++i) {
+    const Vector2d di = h * Vector2d::Unit(i);
+    H(i, i) = (g(di) - 2.0 * g0 + g(-di)) / (h * h);
+  }
+  const Vector2d d0 = h * Vector2d::Unit(0), d1 = h * Vector2d::Unit(1);
+  H(0, 1) = H(1, 0) = (g(d0 + d1) - g(d0 - d1) - g(-d0 + d1) + g(-d0 - d1)) / (4.0 * h * h);
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(H).eigenvalues()[0];
+}
+
+// the Riemannian Hessian's least eigenvalue at u: of f(exp_u(v)) at v = 0 (the exponential
+// map is a second-order retraction, so this is the Riemannian Hessian away from critical
+// points too)
+double sphere_curvature(const Problem& p, const Vector3d& u) {
+  Vector3d t1, t2;
+  basis(u, t1, t2);
+  return least_curvature(
+      [&](const Vector2d& v) {
+        const Vector3d w = v[0] * t1 + v[1] * t2;
+        const double a = w.norm();
+        return p.cost(a > 0.0 ? Vector3d(std::cos(a) * u + std::sin(a) / a * w) : u);
+      },
+      1e-4);
+}
+
+// A random problem: the line through the origin along a random direction, the handle up to
+// 1.6 stylus lengths from it (beyond the reach too), weights from nearly position-only to
+// nearly rotation-only; `value` the cost of a direction near one a placement would reach.
+Problem random_problem(std::mt19937& rng, double& value) {
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  Problem p;
+  p.line.free = random_unit(rng);
+  Vector3d a, b;
+  basis(p.line.free, a, b);
+  const double d = 1.6 * p.L * U(rng), phi = 2.0 * M_PI * U(rng);
+  p.p_R = d * (std::cos(phi) * a + std::sin(phi) * b) + (U(rng) - 0.5) * p.L * p.line.free;
+  p.u_R = random_unit(rng);
+  p.w_r = std::pow(10.0, -8.0 + 10.0 * U(rng)) * p.L * p.L;
+  // near a tip-on-line direction, the handle's offset from the line, or u_R
+  const Vector3d w = p.p_R - p.p_R.dot(p.line.free) * p.line.free;
+  Vector3d near = p.u_R;
+  const double pick = U(rng), x = w.norm() / p.L;
+  if (pick < 0.5 && x < 1.0) {
+    near = w / p.L + (U(rng) < 0.5 ? 1.0 : -1.0) * std::sqrt(1.0 - x * x) * p.line.free;
+  } else if (pick < 0.75) {
+    near = w.normalized();
+  }
+  const double spread = std::pow(10.0, -5.0 + 4.5 * U(rng));
+  value = p.cost(near + spread * random_unit(rng));
+  return p;
+}
+
+constexpr int kProblems = 4000;
+
+// a random problem and its caps; false where it has none
+bool certified_problem(std::mt19937& rng, Problem& p, LineCaps& caps, double& value) {
+  p = random_problem(rng, value);
+  caps = virtmech::detail::line_caps(p.line, p.p_R, p.u_R, p.L, p.w_p, p.w_r, value);
+  return caps.count > 0;
+}
+
+TEST(LineCertificates, EveryDirectionAsLowAsTheValueLiesInACap) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  int certified = 0, checked = 0;
+  for (int k = 0; k < kProblems; ++k) {
+    Problem p;
+    LineCaps caps;
+    double value;
+    if (!certified_problem(rng, p, caps, value)) continue;
+    ++certified;
+    // directions about each cap's centre out to three times its size; those as low as the
+    // value must be on a cap
+    const double size = caps.rho >= 0.0 ? caps.rho : caps.eps * 4.0 + 1e-3;
+    for (int i = 0; i < caps.count; ++i) {
+      for (int j = 0; j < 200; ++j) {
+        const Vector3d u =
+            (caps.centre[i] + 3.0 * size * U(rng) * random_unit(rng)).normalized();
+        if (!(p.cost(u) <= value)) continue;
+        ++checked;
+        const bool on = virtmech::detail::cap_holds(caps, 0, u, p.line.free) ||
+                        (caps.count == 2 && virtmech::detail::cap_holds(caps, 1, u, p.line.free));
+        ASSERT_TRUE(on) << "problem " << k << " cap " << i;
+      }
+    }
+  }
+  EXPECT_GT(certified, kProblems / 3);
+  EXPECT_GT(checked, 10000);
+}
+
+TEST(LineCertificates, TheCostIsStrictlyConvexOnEveryCertifiedCap) {
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  int two = 0, one = 0;
+  for (int k = 0; k < kProblems; ++k) {
+    Problem p;
+    LineCaps caps;
+    double value;
+    if (!certified_problem(rng, p, caps, value)) continue;
+    const Vector3d& e = p.line.free;
+    Vector3d a, b;
+    basis(e, a, b);
+    // a tolerance for the differences' rounding, far below the bounds' margins
+    const double tol = 1e-6 * (2.0 * p.w_p * p.L * p.L + 2.0 * p.w_r);
+    for (int j = 0; j < 60; ++j) {
+      if (caps.count == 2) {
+        // the chart x -> x + s sqrt(1 - |x|^2) e over the disk |x - x0| <= eps
+        const int i = j % 2;
+        const double s = i == 0 ? 1.0 : -1.0;
+        const double r = caps.eps * std::sqrt(U(rng)), t = 2.0 * M_PI * U(rng);
+        const Vector3d x = caps.x0 + r * (std::cos(t) * a + std::sin(t) * b);
+        const double h = 1e-3 * std::sqrt(1.0 - x.squaredNorm());
+        const double c = least_curvature(
+            [&](const Vector2d& v) {
+              const Vector3d y = x + v[0] * a + v[1] * b;
+              return p.cost(y + s * std::sqrt(1.0 - y.squaredNorm()) * e);
+            },
+            h);
+        ASSERT_GT(c, -tol) << "problem " << k << " cap " << i;
+        ++two;
+      } else {
+        // the cap of chord rho about its centre
+        const double chord = caps.rho * std::sqrt(U(rng));
+        const Vector3d t = random_unit(rng);
+        Vector3d tangent = t - t.dot(caps.centre[0]) * caps.centre[0];
+        tangent.normalize();
+        const double angle = 2.0 * std::asin(0.5 * chord);
+        const Vector3d u = std::cos(angle) * caps.centre[0] + std::sin(angle) * tangent;
+        ASSERT_GT(sphere_curvature(p, u), -tol) << "problem " << k;
+        ++one;
+      }
+    }
+  }
+  EXPECT_GT(two, 10000);
+  EXPECT_GT(one, 3000);
+}
+
+TEST(LineCertificates, TheCapAboutTheHandleIsConvexWhereCertified) {
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  int certified = 0;
+  for (int k = 0; k < kProblems; ++k) {
+    double value;
+    const Problem p = random_problem(rng, value);
+    if (!virtmech::detail::handle_cap_certified(p.line, p.p_R, p.u_R, p.L, p.w_p, p.w_r,
+                                                value)) {
+      continue;
+    }
+    ++certified;
+    const double radius = std::sqrt(value / p.w_r);  // every minimiser this near u_R
+    const double tol = 1e-6 * (2.0 * p.w_p * p.L * p.L + 2.0 * p.w_r);
+    for (int j = 0; j < 30; ++j) {
+      Vector3d tangent = random_unit(rng);
+      tangent = (tangent - tangent.dot(p.u_R) * p.u_R).normalized();
+      const double angle = radius * std::sqrt(U(rng));
+      const Vector3d u = std::cos(angle) * p.u_R + std::sin(angle) * tangent;
+      ASSERT_GT(sphere_curvature(p, u), -tol) << "problem " << k;
+    }
+  }
+  EXPECT_GT(certified, kProblems / 20);
+}
+
+}  // namespace
