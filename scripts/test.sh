@@ -36,13 +36,17 @@ build/cpp/examples/surface_probe_c | tail -n 3
 echo "== Python: ruff"
 .venv/bin/ruff check python tests/python tests/reference examples/python
 
-echo "== Python: pytest"
-set +e
-.venv/bin/python -m pytest
-rc=$?
-set -e
-if [ "$rc" -eq 5 ]; then
-  echo "pytest collected no tests: the suite is misconfigured" >&2
-  exit 1
-fi
-exit "$rc"
+# the suite (tests marked slow excluded: pyproject.toml's addopts), then the slow ones: the
+# thorough variants of the global-optimum and reference checks and the bench's NumPy column
+for marks in "" "slow"; do
+  echo "== Python: pytest${marks:+ -m $marks}"
+  set +e
+  .venv/bin/python -m pytest ${marks:+-m "$marks"}
+  rc=$?
+  set -e
+  if [ "$rc" -eq 5 ]; then
+    echo "pytest collected no tests${marks:+ marked $marks}: the suite is misconfigured" >&2
+    exit 1
+  fi
+  [ "$rc" -eq 0 ] || exit "$rc"
+done
