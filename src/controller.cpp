@@ -579,6 +579,30 @@ void Controller::applied(const double* tau) noexcept {
   data_.last_torque = Eigen::Map<const JointVector>(tau, device_->dof());
 }
 
+namespace {
+
+// The placements' outputs (the joints at a limit before the terms release any).
+void placement_outputs(const ControllerModel& M, ControllerData& d, CycleOutput& out) noexcept {
+  const Placement& pn = d.nearest;
+  const Placement& pu = M.under_actuated_term ? d.unpowered : d.nearest;
+  out.theta = pn.theta;
+  out.theta_star = pu.theta;
+  out.mechanism_pose = pn.pose;
+  out.mechanism_pose_star = pu.pose;
+  out.iterations = pn.result.iterations;
+  out.residual = pn.result.residual;
+  out.active = pn.active;
+  out.iterations_star = M.under_actuated_term ? pu.result.iterations : 0;
+  out.residual_star = M.under_actuated_term ? pu.result.residual : 0.0;
+  out.active_star = M.under_actuated_term ? pu.active : 0u;
+  if (!pn.result.converged || (M.under_actuated_term && !pu.result.converged)) {
+    out.status |= status::kNotConverged;
+  }
+  if (!M.under_actuated_term) d.unpowered.theta = pn.theta;
+}
+
+}  // namespace
+
 std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
                                const Eigen::Ref<const Eigen::VectorXd>& dq, CycleOutput& out,
                                double t_s) noexcept {
@@ -595,11 +619,18 @@ std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
 
 std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& out,
                                double t_s) noexcept {
-  const auto t_start = std::chrono::steady_clock::now();
+  const std::uint32_t placed = place(q, dq, out, t_s);
+  if (placed & status::kFaultMask) return placed;
+  return render(out);
+}
+
+std::uint32_t Controller::place(const double* q, const double* dq, CycleOutput& out,
+                                double t_s) noexcept {
+  ControllerData& d = data_;
+  d.cycle_start = std::chrono::steady_clock::now();
   const Device& dev = *device_;
   const Mechanism& mech = *mechanism_;
   const ControllerModel& M = model_;
-  ControllerData& d = data_;
   out.status = status::kOk;
 
   if (const std::uint32_t bad = check_input(M, dev, q, dq)) {
@@ -621,15 +652,28 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   if (dev.fully_actuated()) out.wrench_unrendered.setZero();
   watchdog(M, d, t_s, out);
   device_kinematics(dev, d, q, dq);
+  d.q_cycle = Eigen::Map<const JointVector>(q, dev.dof());
   out.handle_pose = d.handle_pose;
 
   // the two placements (eqs. 18-20, 25)
-  place(M, mech, d.handle_pose, M.w_e_effective, d.first, d.nearest);
+  virtmech::place(M, mech, d.handle_pose, M.w_e_effective, d.first, d.nearest);
   if (M.under_actuated_term) {
     if (d.first) d.unpowered.theta = d.nearest.theta;
-    place(M, mech, d.handle_pose, M.w_e_star_effective, d.first, d.unpowered);
+    virtmech::place(M, mech, d.handle_pose, M.w_e_star_effective, d.first, d.unpowered);
   }
   d.first = false;
+  placement_outputs(M, d, out);
+  out.error = -d.nearest.error;  // e = X_V - X_R (eq. 22)
+  if (M.under_actuated_term) out.error_star = -d.unpowered.error;
+  return out.status;
+}
+
+std::uint32_t Controller::render(CycleOutput& out) noexcept {
+  const Device& dev = *device_;
+  const Mechanism& mech = *mechanism_;
+  const ControllerModel& M = model_;
+  ControllerData& d = data_;
+  const double* q = d.q_cycle.data();
 
   // eq. 26 (eq. 11 without the range term)
   factorise_first_pass(M, d);
@@ -642,28 +686,13 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
   keep_renderable(M, dev, d, f, out);
   safety(M, dev, d, f, out);
   if (M.passivity != Passivity::kOff) {
-    d.last_q = Eigen::Map<const JointVector>(q, dev.dof());
+    d.last_q = d.q_cycle;
     d.last_torque = out.torque;
     d.have_last_torque = true;
   }
-
-  // outputs
-  const Placement& pn = d.nearest;
-  const Placement& pu = M.under_actuated_term ? d.unpowered : d.nearest;
-  out.theta = pn.theta;
-  out.theta_star = pu.theta;
-  out.mechanism_pose = pn.pose;
-  out.mechanism_pose_star = pu.pose;
-  out.iterations = pn.result.iterations;
-  out.residual = pn.result.residual;
-  out.active = pn.active;
-  out.iterations_star = M.under_actuated_term ? pu.result.iterations : 0;
-  out.residual_star = M.under_actuated_term ? pu.result.residual : 0.0;
-  out.active_star = M.under_actuated_term ? pu.active : 0u;
-  if (!pn.result.converged || (M.under_actuated_term && !pu.result.converged)) {
-    out.status |= status::kNotConverged;
-  }
-  if (!M.under_actuated_term) d.unpowered.theta = pn.theta;
+  // the joints at a limit after the terms released those pulling away from it
+  out.active = d.nearest.active;
+  out.active_star = M.under_actuated_term ? d.unpowered.active : 0u;
 
   if (!out.torque.allFinite() || !f.allFinite()) {  // belt and braces: zero, start afresh
     d.nearest.theta = mech.home();
@@ -675,9 +704,34 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
     out.theta_star = d.unpowered.theta;
     fault(dev, d, status::kFaultNonFiniteOutput, out);
   }
+  return finish(out);
+}
+
+std::uint32_t Controller::unrendered(CycleOutput& out) noexcept {
+  const ControllerModel& M = model_;
+  ControllerData& d = data_;
+  out.torque.setZero(device_->dof());
+  out.wrench.setZero();
+  out.wrench_null.setZero();
+  out.wrench_range.setZero();
+  out.wrench_passivity.setZero();
+  out.wrench_unrendered.setZero();
+  out.error_dot.setZero();
+  out.error_star_dot.setZero();
+  out.limit_scale = 1.0;
+  // the ramp-in advances as safety() advances it
+  out.ramp = std::min(1.0, static_cast<double>(d.ramp_count + 1) /
+                               static_cast<double>(M.ramp_cycles));
+  if (d.ramp_count < M.ramp_cycles) ++d.ramp_count;
+  if (out.ramp < 1.0) out.status |= status::kRamping;
+  return finish(out);
+}
+
+std::uint32_t Controller::finish(CycleOutput& out) noexcept {
   const auto t_end = std::chrono::steady_clock::now();
-  out.computation_time_us = std::chrono::duration<double, std::micro>(t_end - t_start).count();
-  d.last = out;
+  out.computation_time_us =
+      std::chrono::duration<double, std::micro>(t_end - data_.cycle_start).count();
+  data_.last = out;
   return out.status;
 }
 

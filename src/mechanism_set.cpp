@@ -92,14 +92,14 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
     last_ = out;
     return status::kOk;
   }
+  // every member's placements (Controller::place), its distance from them; the wrench only
+  // for the member rendered (Controller::render), once it is chosen
   std::uint32_t faults = 0;
   for (int i = 0; i < n; ++i) {
     CycleOutput& o = outputs_[static_cast<size_t>(i)];
-    faults |= members_[static_cast<size_t>(i)]->step(q, dq, o, t_s) & status::kFaultMask;
-    const Mechanism& mech = members_[static_cast<size_t>(i)]->mechanism();
-    out.distance[static_cast<size_t>(i)] = member_distance(mech, o);
-    const int c = mech.contact_joint();
-    if (c >= 0 && (((o.active | o.active_star) >> c) & 1u)) out.contact |= 1u << i;
+    faults |= members_[static_cast<size_t>(i)]->place(q, dq, o, t_s) & status::kFaultMask;
+    out.distance[static_cast<size_t>(i)] =
+        member_distance(members_[static_cast<size_t>(i)]->mechanism(), o);
   }
 
   // the member to render: the engaged one while within the release distance, else the
@@ -122,9 +122,19 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
   }
   if (chosen != active_) switching_ = true;
   active_ = chosen;
-  // the members not rendered did no work: their tanks start afresh when they are
-  for (int i = 0; i < n; ++i) {
-    if (i != active_) members_[static_cast<size_t>(i)]->restart_energy();
+  // the member rendered; the others end their cycles without a wrench, and as they did no
+  // work their tanks start afresh when they are rendered
+  for (int i = 0; i < n && !faults; ++i) {
+    Controller& member = *members_[static_cast<size_t>(i)];
+    CycleOutput& o = outputs_[static_cast<size_t>(i)];
+    if (i == active_) {
+      member.render(o);
+    } else {
+      member.unrendered(o);
+      member.restart_energy();
+    }
+    const int c = member.mechanism().contact_joint();
+    if (c >= 0 && (((o.active | o.active_star) >> c) & 1u)) out.contact |= 1u << i;
   }
 
   const CycleOutput& src = outputs_[static_cast<size_t>(active_ >= 0 ? active_ : 0)];

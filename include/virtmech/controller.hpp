@@ -9,6 +9,7 @@
 //   -> passivity (energy tank) -> keep_renderable -> safety -> outputs
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -197,6 +198,9 @@ struct ControllerData {
   JointVector last_q, last_torque;
   double last_t = std::numeric_limits<double>::quiet_NaN();
   CycleOutput last;
+  // the cycle between place() and render(): its joint values and its start
+  JointVector q_cycle;
+  std::chrono::steady_clock::time_point cycle_start;
 };
 
 class Controller {
@@ -213,6 +217,20 @@ class Controller {
   std::uint32_t step(const Eigen::Ref<const Eigen::VectorXd>& q,
                      const Eigen::Ref<const Eigen::VectorXd>& dq, CycleOutput& out,
                      double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
+
+  /// step() in two halves, for a caller that needs the placements of several controllers
+  /// before it renders one (a MechanismSet): place() checks the input, runs the watchdog,
+  /// the device's kinematics and both placements, and writes their outputs (theta,
+  /// theta_star, the poses, the errors e and e*, iterations, residuals, the joints at a
+  /// limit, kNotConverged); a faulted input ends the cycle there (the return value has a
+  /// fault bit; out is complete). render(out) then computes the wrench and the torque
+  /// (eqs. 11 / 26, passivity, what the device cannot render, safety) as step() does, and
+  /// unrendered(out) ends the cycle without them: zero wrench and torque, the ramp-in
+  /// advancing as if rendered. Both noexcept and allocation-free.
+  std::uint32_t place(const double* q, const double* dq, CycleOutput& out,
+                      double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
+  std::uint32_t render(CycleOutput& out) noexcept;
+  std::uint32_t unrendered(CycleOutput& out) noexcept;
 
   /// Restarts: placements from the mechanism's home, ramp-in from zero.
   void reset() noexcept;
@@ -233,6 +251,8 @@ class Controller {
   const CycleOutput& last() const noexcept { return data_.last; }
 
  private:
+  std::uint32_t finish(CycleOutput& out) noexcept;  // the cycle's time; last()
+
   std::shared_ptr<const Device> device_;
   std::shared_ptr<const Mechanism> mechanism_;
   ControllerModel model_;

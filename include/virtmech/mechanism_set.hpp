@@ -65,8 +65,10 @@ class MechanismSet {
   int add(std::shared_ptr<const Mechanism> mechanism,
           const ControllerSettings& settings = ControllerSettings());
 
-  /// One servo cycle: every member steps (their placements follow the handle), the set
-  /// chooses the member to render and blends its force in. noexcept, allocation-free.
+  /// One servo cycle: every member places (Controller::place: their placements follow the
+  /// handle and give their distances), the set chooses the member to render, which renders
+  /// (Controller::render) while the others end their cycles without a wrench
+  /// (Controller::unrendered), and blends its force in. noexcept, allocation-free.
   /// With no member added the torque is zero.
   std::uint32_t step(const double* q, const double* dq, MechanismSetOutput& out,
                      double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;

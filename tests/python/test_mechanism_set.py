@@ -236,3 +236,33 @@ def test_a_faulted_cycle_engages_no_member():
     for _ in range(20):
         out = s.step(q_tip(0.007), np.zeros(6))
         assert out.active == -1 and np.all(np.asarray(out.wrench) == 0.0)
+
+
+def test_the_rendered_member_renders_as_its_controller_stepped_whole():
+    """Only the member rendered computes its wrench (the others place and end their cycles
+    without one): whenever the set is not blending, its torque is the one the member's own
+    controller gives stepped whole every cycle, its ramp-in included (the members ramp in
+    over 50 cycles while not rendered too)."""
+    dev = cartesian_device()
+    # switching within a cycle, so that a member's ramp-in shows once it engages
+    s = vm.MechanismSet(dev, 4, snap_distance=SNAP, release_distance=RELEASE,
+                        force_rate=1e6, moment_rate=1e6)
+    twins = []
+    for h in HEIGHTS:
+        guide = vm.LineGuide([0, 0, h], [1, 0, 0], L, [0, 0, 1])
+        s.add(vm.Controller(dev, guide, ramp_time_s=0.05, passivity="off"))
+        twins.append(vm.Controller(dev, guide, ramp_time_s=0.05, passivity="off"))
+    path = np.r_[np.linspace(0.02, -0.05, 700), np.linspace(-0.05, 0.02, 700)]
+    out = vm.MechanismSetOutput()
+    compared = set()
+    for k, z in enumerate(path):
+        v = (path[min(k + 1, len(path) - 1)] - path[max(k - 1, 0)]) / (2 * DT)
+        q, dq = q_tip(z, x=0.01 + 0.02 * np.sin(k * DT * 3)), np.array([0, 0, v, 0, 0, 0])
+        s.step(q, dq, out=out)
+        whole = [t.step(q, dq) for t in twins]
+        assert np.array_equal(out.distance[:2], [np.linalg.norm(w.error[:3]) for w in whole])
+        if out.active >= 0 and not out.switching:
+            np.testing.assert_allclose(out.torque, whole[out.active].torque, rtol=0, atol=1e-12)
+            if np.abs(out.torque).max() > 1e-3:
+                compared.add(out.active)
+    assert compared == {0, 1}  # both members rendered real forces
