@@ -480,6 +480,14 @@ void passivity(const ControllerModel& M, const Device& dev, ControllerData& d, c
 
 // Force and moment limits keeping direction, ramp-in, tau = J_R^T f with passive joints at
 // exactly 0 (eq. 8), joint torque limits.
+// The ramp-in's factor this cycle (out.ramp), one cycle further on.
+void advance_ramp(const ControllerModel& M, ControllerData& d, CycleOutput& out) noexcept {
+  out.ramp = std::min(1.0, static_cast<double>(d.ramp_count + 1) /
+                               static_cast<double>(M.ramp_cycles));
+  if (d.ramp_count < M.ramp_cycles) ++d.ramp_count;
+  if (out.ramp < 1.0) out.status |= status::kRamping;
+}
+
 void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vector6& f,
             CycleOutput& out) noexcept {
   const int n = dev.dof();
@@ -488,10 +496,7 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
   if (fn > M.max_force) scale = std::min(scale, M.max_force / fn);
   if (mn > M.max_torque) scale = std::min(scale, M.max_torque / mn);
   if (scale < 1.0) out.status |= status::kForceClamped;
-  out.ramp = std::min(1.0, static_cast<double>(d.ramp_count + 1) /
-                               static_cast<double>(M.ramp_cycles));
-  if (d.ramp_count < M.ramp_cycles) ++d.ramp_count;
-  if (out.ramp < 1.0) out.status |= status::kRamping;
+  advance_ramp(M, d, out);
   f *= scale * out.ramp;
 
   detail::jacobian_transpose_times(d.J_R, f, out.torque);  // eq. 8
@@ -516,17 +521,27 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
 // Every output of the cycle cleared, so that a faulted cycle reports nothing of the last
 // one (poses identity, errors zero): the caller may reuse one CycleOutput. (A good cycle
 // writes them itself.)
-void begin(int n, CycleOutput& out) noexcept {
-  out.status = status::kOk;
+// The force outputs cleared: a cycle without a wrench (also what begin() clears of them).
+void clear_force(int n, CycleOutput& out) noexcept {
   out.torque.setZero(n);
   out.wrench.setZero();
   out.wrench_null.setZero();
   out.wrench_range.setZero();
   out.wrench_unrendered.setZero();
-  out.error.setZero();
+  out.wrench_passivity.setZero();
   out.error_dot.setZero();
-  out.error_star.setZero();
   out.error_star_dot.setZero();
+  out.limit_scale = 1.0;
+  out.energy = 0.0;
+  out.stored_energy = 0.0;
+  out.passivity_scale = 1.0;
+}
+
+void begin(int n, CycleOutput& out) noexcept {
+  out.status = status::kOk;
+  clear_force(n, out);
+  out.error.setZero();
+  out.error_star.setZero();
   out.handle_pose.setIdentity();
   out.mechanism_pose.setIdentity();
   out.mechanism_pose_star.setIdentity();
@@ -534,11 +549,6 @@ void begin(int n, CycleOutput& out) noexcept {
   out.residual = out.residual_star = 0.0;
   out.active = out.active_star = 0;
   out.ramp = 0.0;
-  out.limit_scale = 1.0;
-  out.energy = 0.0;
-  out.stored_energy = 0.0;
-  out.wrench_passivity.setZero();
-  out.passivity_scale = 1.0;
   out.computation_time_us = 0.0;
 }
 
@@ -708,22 +718,8 @@ std::uint32_t Controller::render(CycleOutput& out) noexcept {
 }
 
 std::uint32_t Controller::unrendered(CycleOutput& out) noexcept {
-  const ControllerModel& M = model_;
-  ControllerData& d = data_;
-  out.torque.setZero(device_->dof());
-  out.wrench.setZero();
-  out.wrench_null.setZero();
-  out.wrench_range.setZero();
-  out.wrench_passivity.setZero();
-  out.wrench_unrendered.setZero();
-  out.error_dot.setZero();
-  out.error_star_dot.setZero();
-  out.limit_scale = 1.0;
-  // the ramp-in advances as safety() advances it
-  out.ramp = std::min(1.0, static_cast<double>(d.ramp_count + 1) /
-                               static_cast<double>(M.ramp_cycles));
-  if (d.ramp_count < M.ramp_cycles) ++d.ramp_count;
-  if (out.ramp < 1.0) out.status |= status::kRamping;
+  clear_force(device_->dof(), out);
+  advance_ramp(model_, data_, out);  // as safety() advances it
   return finish(out);
 }
 
