@@ -136,6 +136,10 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
     const int c = member.mechanism().contact_joint();
     if (c >= 0 && (((o.active | o.active_star) >> c) & 1u)) out.contact |= 1u << i;
   }
+  // a fault of the rendered member's own output (non-finite) is the set's, as an input's is
+  if (!faults && active_ >= 0) {
+    faults = outputs_[static_cast<size_t>(active_)].status & status::kFaultMask;
+  }
 
   const CycleOutput& src = outputs_[static_cast<size_t>(active_ >= 0 ? active_ : 0)];
   out.cycle = src;
