@@ -330,8 +330,7 @@ void release(std::uint32_t joints, Placement& p) noexcept {
 // joints kept in the constraint.
 void null_space_term(const ControllerModel& M, const Mechanism& mech, ControllerData& d,
                      CycleOutput& out) noexcept {
-  Placement& p = d.nearest;
-  out.error = -p.error;  // e = X_V - X_R (eq. 22)
+  Placement& p = d.nearest;  // (out.error = -p.error: Controller::place wrote it)
   WeightedProjector& rate = M.w_a_shares_rate ? d.projector_a : d.rate;
   for (int pass = 0; pass < 2; ++pass) {
     error_rate(M, p, M.w_e_effective, d.v_R, pass == 0, rate, out.error_dot);
@@ -352,8 +351,7 @@ void null_space_term(const ControllerModel& M, const Mechanism& mech, Controller
 // end of its reach), P is taken at the un-powered placement (docs/theory.md, 6).
 void range_space_term(const ControllerModel& M, const Mechanism& mech, ControllerData& d,
                       CycleOutput& out) noexcept {
-  Placement& p = d.unpowered;
-  out.error_star = -p.error;
+  Placement& p = d.unpowered;  // (out.error_star = -p.error: Controller::place wrote it)
   // P(W_A) at the nearest placement, every column: the null term's when none is locked.
   // Neither it nor the un-powered placement's J (every column) changes between the passes.
   if (d.nearest.active) d.projector_a.compute(d.nearest.J, M.w_a);
@@ -478,8 +476,6 @@ void passivity(const ControllerModel& M, const Device& dev, ControllerData& d, c
   out.status |= status::kPassivity;
 }
 
-// Force and moment limits keeping direction, ramp-in, tau = J_R^T f with passive joints at
-// exactly 0 (eq. 8), joint torque limits.
 // The ramp-in's factor this cycle (out.ramp), one cycle further on.
 void advance_ramp(const ControllerModel& M, ControllerData& d, CycleOutput& out) noexcept {
   out.ramp = std::min(1.0, static_cast<double>(d.ramp_count + 1) /
@@ -488,6 +484,8 @@ void advance_ramp(const ControllerModel& M, ControllerData& d, CycleOutput& out)
   if (out.ramp < 1.0) out.status |= status::kRamping;
 }
 
+// Force and moment limits keeping direction, ramp-in, tau = J_R^T f with passive joints at
+// exactly 0 (eq. 8), joint torque limits.
 void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vector6& f,
             CycleOutput& out) noexcept {
   const int n = dev.dof();
@@ -518,9 +516,6 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
   out.wrench = f;
 }
 
-// Every output of the cycle cleared, so that a faulted cycle reports nothing of the last
-// one (poses identity, errors zero): the caller may reuse one CycleOutput. (A good cycle
-// writes them itself.)
 // The force outputs cleared: a cycle without a wrench (also what begin() clears of them).
 void clear_force(int n, CycleOutput& out) noexcept {
   out.torque.setZero(n);
@@ -537,6 +532,9 @@ void clear_force(int n, CycleOutput& out) noexcept {
   out.passivity_scale = 1.0;
 }
 
+// Every output of the cycle cleared, so that a faulted cycle reports nothing of the last
+// one (poses identity, errors zero): the caller may reuse one CycleOutput. (A good cycle
+// writes them itself.)
 void begin(int n, CycleOutput& out) noexcept {
   out.status = status::kOk;
   clear_force(n, out);

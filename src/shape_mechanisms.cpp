@@ -240,7 +240,7 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
   const Eigen::Vector3d& c = sphere_->center();
   const Eigen::Vector3d v = target.translation() - c;
   const double vn = v.norm();
-  if (!(vn <= 1e300)) return false;  // (NaN or infinite)
+  if (!std::isfinite(vn)) return false;
   detail::TiltCost cost;
   cost.sphere = true;
   cost.sa = vn * vn + length_ * length_;

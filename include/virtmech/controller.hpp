@@ -226,7 +226,7 @@ class Controller {
   /// fault bit; out is complete). render(out) then computes the wrench and the torque
   /// (eqs. 11 / 26, passivity, what the device cannot render, safety) as step() does, and
   /// unrendered(out) ends the cycle without them: zero wrench and torque, the ramp-in
-  /// advancing as if rendered. Both noexcept and allocation-free.
+  /// advancing as if rendered. All three noexcept and allocation-free.
   std::uint32_t place(const double* q, const double* dq, CycleOutput& out,
                       double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
   std::uint32_t render(CycleOutput& out) noexcept;

@@ -74,17 +74,27 @@ double sphere_curvature(const Problem& p, const Vector3d& u) {
       1e-4);
 }
 
-// A random problem: the line through the origin along a random direction, the handle up to
-// 1.6 stylus lengths from it (beyond the reach too), weights from nearly position-only to
-// nearly rotation-only; `value` the cost of a direction near one a placement would reach.
-Problem random_problem(std::mt19937& rng, double& value) {
+// A problem on a random line through the origin, the handle `distance` from it along
+// `radial` (a random direction normal to it) and up to half a stylus length along it.
+Problem line_problem(std::mt19937& rng, double distance, Vector3d& radial) {
   std::uniform_real_distribution<double> U(0.0, 1.0);
   Problem p;
   p.line.free = random_unit(rng);
   Vector3d a, b;
   basis(p.line.free, a, b);
-  const double d = 1.6 * p.L * U(rng), phi = 2.0 * M_PI * U(rng);
-  p.p_R = d * (std::cos(phi) * a + std::sin(phi) * b) + (U(rng) - 0.5) * p.L * p.line.free;
+  const double phi = 2.0 * M_PI * U(rng);
+  radial = std::cos(phi) * a + std::sin(phi) * b;
+  p.p_R = distance * radial + (U(rng) - 0.5) * p.L * p.line.free;
+  return p;
+}
+
+// A random problem: the handle up to 1.6 stylus lengths from the line (beyond the reach
+// too), weights from nearly position-only to nearly rotation-only; `value` the cost of a
+// direction near one a placement would reach.
+Problem random_problem(std::mt19937& rng, double& value) {
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  Vector3d radial;
+  Problem p = line_problem(rng, 1.6 * Problem().L * U(rng), radial);
   p.u_R = random_unit(rng);
   p.w_r = std::pow(10.0, -8.0 + 10.0 * U(rng)) * p.L * p.L;
   // near a tip-on-line direction, the handle's offset from the line, or u_R
@@ -107,13 +117,10 @@ Problem random_problem(std::mt19937& rng, double& value) {
 // stylus 6 to 30 degrees from square to the line and weights up to a third of L^2.
 Problem adverse_problem(std::mt19937& rng, double& value) {
   std::uniform_real_distribution<double> U(0.0, 1.0);
-  Problem p;
-  p.line.free = random_unit(rng);
-  Vector3d a, b;
-  basis(p.line.free, a, b);
-  const double z0 = 0.1 + 0.4 * U(rng), phi = 2.0 * M_PI * U(rng);
-  const Vector3d x0 = std::sqrt(1.0 - z0 * z0) * (std::cos(phi) * a + std::sin(phi) * b);
-  p.p_R = p.L * x0 + (U(rng) - 0.5) * p.L * p.line.free;
+  const double z0 = 0.1 + 0.4 * U(rng), r0 = std::sqrt(1.0 - z0 * z0);
+  Vector3d radial;
+  Problem p = line_problem(rng, Problem().L * r0, radial);
+  const Vector3d x0 = r0 * radial;
   p.u_R = (x0 + (U(rng) < 0.5 ? z0 : -z0) * p.line.free + 1e-4 * random_unit(rng)).normalized();
   p.w_r = std::pow(10.0, -3.0 + 2.5 * U(rng)) * p.L * p.L;
   value = p.cost(p.u_R);
