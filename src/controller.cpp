@@ -283,9 +283,7 @@ void error_rate(const ControllerModel& M, const Placement& p, const Vector6& W,
     return;
   }
   if (!factorised) proj.compute(p.J_free, W);
-  JointVector theta_dot;
-  proj.fit(v_R, theta_dot);  // (J^T W J)^+ J^T W v_R
-  e_dot = detail::jacobian_times(p.J_free, theta_dot.data()) - v_R;
+  e_dot = proj.residual(v_R);  // J (J^T W J)^+ J^T W v_R - v_R
 }
 
 // The factorisations the terms' first pass needs, all at once (WeightedProjector::

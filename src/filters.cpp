@@ -54,8 +54,10 @@ void WeightedProjector::set(const Jacobian& J, const Vector6& w) noexcept {
     w_finite_ = w.allFinite();
     s_min_ = kInf;
     s_max_ = 0.0;
+    support_ = 0;
     for (int i = 0; i < 6; ++i) {
       if (s_[i] > 0.0) {
+        ++support_;
         s_min_ = std::min(s_min_, s_[i]);
         s_max_ = std::max(s_max_, s_[i]);
       }
@@ -270,6 +272,10 @@ void WeightedProjector::finish_factorisation() noexcept {
     ztau_[k] = make_reflector(a[k + 6 * k], z, 6, m - r);
     for (int i = 0; i < k; ++i) reflect(ztau_[k], z, 6, a[i + 6 * k], a + i + 6 * r, 6, m - r);
   }
+  if (r == 5 && support_ == 6) {  // the left null space of A, for residual()
+    q_null_ = Vector6::Unit(5);
+    apply_q(q_, tau_, 5, q_null_);
+  }
   if (r == 0) return;
   double tmin = kInf, tmax = 0.0;
   for (int i = 0; i < r; ++i) {
@@ -284,6 +290,11 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
   if (rank_ == 0) return Vector6::Zero();
   const Vector6 x = rotated_ ? Vector6(V_.transpose() * x_in) : x_in;
   const int r = rank_, m = m_;
+  if (r == support_ && free_.cwiseProduct(x).isZero(0.0)) {
+    // x on the weighted axes only, and sqrt(W) J of full row rank on them: Q1 spans those
+    // axes, so P x = S Q1 Q1^T S^+ x is x itself (exactly; the zero-weight rows are 0)
+    return rotated_ ? Vector6(V_ * x) : x;
+  }
   const double* a = a_.data();
   Vector6 g = Vector6::Zero();
   Vector6 xj = x;  // the part of x that goes through J^T
@@ -329,6 +340,24 @@ void WeightedProjector::fit(const Vector6& v, JointVector& theta_dot) const noex
   }
   for (int k = 0; k < r && r < m; ++k) reflect(ztau_[k], a + k + 6 * r, 6, d[k], d + r, 1, m - r);
   for (int i = 0; i < m; ++i) theta_dot[perm_[i]] = d[i];
+}
+
+Vector6 WeightedProjector::residual(const Vector6& v_in) const noexcept {
+  if (!finite_) return Vector6::Constant(std::numeric_limits<double>::quiet_NaN());
+  const Vector6 v = rotated_ ? Vector6(V_.transpose() * v_in) : v_in;
+  Vector6 out;
+  if (support_ == 6 && rank_ >= 5) {
+    // S (J theta_dot - v) = -(I - Q1 Q1^T) S v = -Q2 Q2^T S v: Q2 is Q's last column at
+    // rank 5 (A of full row rank at 6: no residual)
+    out = rank_ == 6 ? Vector6::Zero()
+                     : Vector6(-q_null_.dot(s_.cwiseProduct(v)) * s_inv_.cwiseProduct(q_null_));
+  } else {
+    JointVector theta_dot;
+    fit(v, theta_dot);
+    out = -v;
+    for (int j = 0; j < m_; ++j) out += theta_dot[j] * J_.col(j);
+  }
+  return rotated_ ? Vector6(V_ * out) : out;
 }
 
 namespace {

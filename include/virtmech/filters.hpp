@@ -38,6 +38,10 @@ class WeightedProjector {
   /// The weighted minimum-norm least-squares fit (J^T W J)^+ J^T W v (m entries), e.g. the
   /// placement's joint rate for a handle twist v.
   void fit(const Vector6& v, JointVector& theta_dot) const noexcept;
+  /// J theta_dot - v for theta_dot = fit(v): the part of the twist v the columns do not
+  /// follow. With every weight > 0 it is -W^-1 n (n^T v) / (n^T W^-1 n) where J has one left
+  /// null vector n (rank 5: n from Q's last column, no fit), and 0 at rank 6.
+  Vector6 residual(const Vector6& v) const noexcept;
   /// Numerical rank of sqrt(W) J.
   int rank() const noexcept { return rank_; }
 
@@ -73,6 +77,8 @@ class WeightedProjector {
   Vector6 s_, s_inv_;     // sqrt of the (eigen)weights and its pseudo-inverse
   Vector6 free_;          // 1 where the weight is 0, else 0
   double s_min_ = kInf, s_max_ = 0.0;  // the least and largest of s_ > 0: kappa(S)
+  int support_ = 0;       // weights > 0: the rank sqrt(W) J can have at most
+  Vector6 q_null_ = Vector6::Zero();  // every weight > 0 and rank 5: Q's last column (A^T q_null_ = 0)
   Matrix6 V_;             // eigenvectors of a full W (rotated_ only)
   double n2_[kMaxDof] = {};  // while factorising: squared norms of the columns' rows k..5
   double cut_ = 0.0;      // while factorising: (kPinvTolerance |R_00|)^2

@@ -207,6 +207,85 @@ TEST(FilterProjector, FitMatchesCompleteOrthogonalDecomposition) {
   }
 }
 
+TEST(FilterProjector, FullRowRankOnTheWeightedAxesKeepsTheirWrenchesExactly) {
+  // W = diag(1, 1, 1, 0, 0, 0) (an under-actuated device's W_A) and sqrt(W) J of rank 3: P(W)
+  // is [I G; 0 0], so a wrench on the weighted axes passes exactly and N(W) takes nothing of
+  // it; with rank 2 (the rows' span lost a direction) it does not pass whole
+  std::mt19937 rng(19);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const Vector6 w = (Vector6() << 1.0, 1.0, 1.0, 0.0, 0.0, 0.0).finished();
+  for (int trial = 0; trial < 500; ++trial) {
+    const int m = 3 + trial % 4;
+    Jacobian J(6, m);
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < 6; ++i) J(i, j) = g(rng);
+    const bool deficient = trial % 5 == 0;
+    if (deficient) J.row(2) = 0.5 * J.row(0) - 2.0 * J.row(1);  // rank 2 on the weighted rows
+    Vector6 x = Vector6::Zero();
+    for (int i = 0; i < 3; ++i) x[i] = g(rng);
+    WeightedProjector p;
+    p.compute(J, w);
+    ASSERT_EQ(p.rank(), deficient ? 2 : 3) << trial;
+    if (deficient) {
+      EXPECT_GT(p.null(x).norm(), 1e-6 * x.norm()) << trial;
+    } else {
+      EXPECT_EQ(p.range(x), x) << trial;
+      EXPECT_EQ(p.null(x), Vector6::Zero()) << trial;
+    }
+  }
+}
+
+TEST(FilterProjector, ResidualIsTheWeightedLeastSquaresResidual) {
+  // residual(v) = J theta - v, theta the weighted minimum-norm least-squares fit of v,
+  // against that fit in long double (Eigen's complete orthogonal decomposition): Jacobians
+  // of full column rank 1..6 (rank 5: the one-dot-product formula), weights spread over
+  // eight decades (an under-actuated device's 1 and 1e-6 L^2), some of them zero
+  using LD = Eigen::Matrix<long double, Eigen::Dynamic, Eigen::Dynamic>;
+  using LDv = Eigen::Matrix<long double, Eigen::Dynamic, 1>;
+  std::mt19937 rng(17);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int rank5 = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    const int m = trial % 3 ? 5 : 1 + trial % 6;
+    Jacobian J(6, m);
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < 6; ++i) J(i, j) = g(rng);
+    if (trial % 4 == 1)
+      for (int j = 0; j < m; ++j) J.col(j) *= std::pow(10.0, -3.0 + 3.0 * u(rng));
+    Vector6 w;
+    for (int i = 0; i < 6; ++i) w[i] = std::pow(10.0, -8.0 * u(rng));
+    if (trial % 2) w << 1.0, 1.0, 1.0, 1e-8, 1e-8, 1e-8;
+    if (trial % 7 == 3) w[trial % 6] = 0.0;
+    Vector6 v;
+    for (int i = 0; i < 6; ++i) v[i] = g(rng);
+    WeightedProjector p;
+    p.compute(J, w);
+    const Vector6 r = p.residual(v);
+    LDv s(6), vl(6);
+    for (int i = 0; i < 6; ++i) s[i] = std::sqrt(static_cast<long double>(w[i]));
+    for (int i = 0; i < 6; ++i) vl[i] = v[i];
+    const LD Jl = J.cast<long double>();
+    const LD A = s.asDiagonal() * Jl;
+    Eigen::CompleteOrthogonalDecomposition<LD> cod(A.rows(), A.cols());
+    cod.setThreshold(kPinvTolerance);
+    cod.compute(A);
+    ASSERT_EQ(p.rank(), cod.rank()) << trial;
+    ASSERT_GT(p.rank(), 0) << trial;
+    const LDv theta = cod.solve(LDv(s.asDiagonal() * vl));
+    const Vector6 ref = (Jl * theta - vl).cast<double>();
+    rank5 += p.rank() == 5 && w.minCoeff() > 0.0;
+    const Vector6 sd = w.cwiseSqrt();
+    const Eigen::VectorXd sv = Eigen::JacobiSVD<Dyn>(Dyn(sd.asDiagonal() * J)).singularValues();
+    const double kappa = sv(0) / sv(p.rank() - 1);
+    // backward stable: errors of eps kappa(sqrt(W) J), in the weighted norm and (the
+    // lightly weighted rows carrying it) in the plain one
+    EXPECT_LE((r - ref).norm(), 1e-13 * kappa * v.norm()) << trial;
+    EXPECT_LE(sd.cwiseProduct(r - ref).norm(), 1e-14 * kappa * sd.cwiseProduct(v).norm()) << trial;
+  }
+  EXPECT_GT(rank5, 1000);  // the formula's case was exercised
+}
+
 TEST(FilterProjector, FitIsTheWeightedMinimumNormSolution) {
   // J^T W (J theta_dot - v) = 0 and theta_dot in the row space of sqrt(W) J, with a full W
   std::mt19937 rng(13);
