@@ -175,7 +175,9 @@ void WeightedProjector::compute_all(const Job* jobs, int count) noexcept {
   for (int i = 0; i < count; ++i) {
     WeightedProjector& p = *jobs[i].projector;
     p.set(*jobs[i].J, *jobs[i].w);
-    steps[i] = p.start_factorisation();
+    p.deferred_ = p.full_row_rank_certified();
+    if (p.deferred_) p.rank_ = p.support_;
+    steps[i] = p.deferred_ ? 0 : p.start_factorisation();
   }
   // step k of every factorisation before step k + 1 of any: the steps of different
   // factorisations are independent, so their latencies overlap
@@ -187,11 +189,67 @@ void WeightedProjector::compute_all(const Job* jobs, int count) noexcept {
     }
     if (!any) break;
   }
-  for (int i = 0; i < count; ++i) jobs[i].projector->finish_factorisation();
+  for (int i = 0; i < count; ++i) {
+    if (!jobs[i].projector->deferred_) jobs[i].projector->finish_factorisation();
+  }
+}
+
+// True when the Gram matrix G = A_w A_w^T of A's k weighted rows shows them of full row rank
+// with a margin: lambda_min(G) >= det(G) / (tr(G) / (k - 1))^(k - 1) (the other k - 1
+// eigenvalues' product is at most that, by AM-GM) above 1e-11 tr(G), i.e. sigma_k(A) >
+// 3e-6 |A|_F, where the QR's cut is 1e-10 |R_00| <= 1e-10 |A|_F: the QR would find rank k
+// (after j < k steps the remaining columns' norms reach sigma_k / sqrt(m)). det(G) from
+// an LDL^T of G / tr(G) (relative errors ~ k eps kappa(G) <= 1e-4 here).
+bool WeightedProjector::full_row_rank_certified() const noexcept {
+  const int k = support_, m = m_;
+  if (!finite_ || k == 0 || k > m) return false;
+  int rows[6];
+  int c = 0;
+  for (int i = 0; i < 6; ++i) {
+    if (s_[i] > 0.0) rows[c++] = i;
+  }
+  double G[6][6];
+  double tr = 0.0;
+  for (int a = 0; a < k; ++a) {
+    for (int b = 0; b <= a; ++b) {
+      double g = 0.0;
+      for (int j = 0; j < m; ++j) g += J_(rows[a], j) * J_(rows[b], j);
+      G[a][b] = s_[rows[a]] * s_[rows[b]] * g;
+    }
+    tr += G[a][a];
+  }
+  if (!(tr > 0.0) || !std::isfinite(tr)) return false;  // also NaN
+  double L[6][6], D[6], det = 1.0;
+  for (int j = 0; j < k; ++j) {
+    double d = G[j][j] / tr;
+    for (int p = 0; p < j; ++p) d -= L[j][p] * L[j][p] * D[p];
+    if (!(d > 0.0)) return false;
+    D[j] = d;
+    det *= d;
+    for (int i = j + 1; i < k; ++i) {
+      double l = G[i][j] / tr;
+      for (int p = 0; p < j; ++p) l -= L[i][p] * L[j][p] * D[p];
+      L[i][j] = l / d;
+    }
+  }
+  // lambda_min / tr >= det_n (k - 1)^(k - 1), det_n = det(G / tr)
+  double spread = 1.0;
+  for (int i = 1; i < k; ++i) spread *= static_cast<double>(k - 1);
+  return det * spread > 1e-11;
+}
+
+void WeightedProjector::factorise() const noexcept {
+  if (!deferred_) return;
+  deferred_ = false;
+  const int steps = start_factorisation();
+  for (int k = 0; k < steps; ++k) {
+    if (!pivot_step(k)) break;
+  }
+  finish_factorisation();
 }
 
 // A = S J, its column norms; the number of pivot steps to try (0 if not finite)
-int WeightedProjector::start_factorisation() noexcept {
+int WeightedProjector::start_factorisation() const noexcept {
   const int m = m_;
   rank_ = 0;
   split_ = true;
@@ -213,7 +271,7 @@ int WeightedProjector::start_factorisation() noexcept {
 // Q: H_{k-1} ... H_0 A Pi = [R11 R12; 0 R22], column pivoting, stopped once the largest
 // remaining column (|R_kk| to come) is at most kPinvTolerance |R_00|: R22 counts as 0.
 // Step k; false when it stops.
-[[gnu::always_inline]] inline bool WeightedProjector::pivot_step(int k) noexcept {
+[[gnu::always_inline]] inline bool WeightedProjector::pivot_step(int k) const noexcept {
   const int m = m_;
   double* n2 = n2_;
   int p = k;
@@ -262,7 +320,7 @@ int WeightedProjector::start_factorisation() noexcept {
 
 // Z (only when r < m): [R11 R12] Z_{r-1} ... Z_0 = [T 0], Z_k acting on columns k, r..m-1;
 // then the choice of formula
-void WeightedProjector::finish_factorisation() noexcept {
+void WeightedProjector::finish_factorisation() const noexcept {
   if (!finite_) return;
   const int m = m_;
   const int r = rank_;
@@ -295,6 +353,7 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
     // axes, so P x = S Q1 Q1^T S^+ x is x itself (exactly; the zero-weight rows are 0)
     return rotated_ ? Vector6(V_ * x) : x;
   }
+  factorise();
   const double* a = a_.data();
   Vector6 g = Vector6::Zero();
   Vector6 xj = x;  // the part of x that goes through J^T
@@ -328,6 +387,7 @@ void WeightedProjector::fit(const Vector6& v, JointVector& theta_dot) const noex
   theta_dot.setZero(m);
   if (!finite_) theta_dot.setConstant(std::numeric_limits<double>::quiet_NaN());
   if (!finite_ || r == 0) return;
+  factorise();
   // A^+ S v = Pi Z [T^-1 (Q^T S v)_{0:r}; 0]
   const double* a = a_.data();
   Vector6 g = s_.cwiseProduct(rotated_ ? Vector6(V_.transpose() * v) : v);
@@ -346,6 +406,7 @@ Vector6 WeightedProjector::residual(const Vector6& v_in) const noexcept {
   if (!finite_) return Vector6::Constant(std::numeric_limits<double>::quiet_NaN());
   const Vector6 v = rotated_ ? Vector6(V_.transpose() * v_in) : v_in;
   Vector6 out;
+  if (support_ != 6 || rank_ != 6) factorise();
   if (support_ == 6 && rank_ >= 5) {
     // S (J theta_dot - v) = -(I - Q1 Q1^T) S v = -Q2 Q2^T S v: Q2 is Q's last column at
     // rank 5 (A of full row rank at 6: no residual)

@@ -18,6 +18,12 @@ constexpr double kPinvTolerance = 1e-10;
 /// without forming J^T W J (which squares the condition number). A is factorised by a
 /// complete orthogonal decomposition, A Pi = Q [T 0; 0 0] Z^T (column-pivoted Householder
 /// QR, then an RZ step only when rank < m). Non-finite J or W give NaN results.
+///
+/// Where the Gram matrix of A's weighted rows certifies that A has full row rank on them
+/// (rank = the number of weights > 0, with a margin of 1e4 over kPinvTolerance), compute()
+/// leaves the factorisation to the first query that needs it: rank() is known, and P(W) x
+/// for x on the weighted axes only is x itself (see range()). Results are the same either
+/// way. One projector is not for concurrent use (const queries may factorise).
 class WeightedProjector {
  public:
   WeightedProjector() noexcept;
@@ -58,19 +64,22 @@ class WeightedProjector {
 
  private:
   void set(const Jacobian& J, const Vector6& w) noexcept;
-  int start_factorisation() noexcept;
-  bool pivot_step(int k) noexcept;
-  void finish_factorisation() noexcept;
+  bool full_row_rank_certified() const noexcept;
+  void factorise() const noexcept;  // a deferred factorisation, now
+  int start_factorisation() const noexcept;
+  bool pivot_step(int k) const noexcept;
+  void finish_factorisation() const noexcept;
 
   // A = diag(s_) J_ Pi factorised: R (then T) on and above the diagonal of the first m_
   // columns of a_, zeros below it; Q's reflectors at full length in the columns of q_
   // (column k: k zeros, 1, then the reflector's tail), so applying one is a fixed-size
   // (vectorised) 6-vector operation; Z's reflectors in rows 0..r-1 of a_, right of column r
+  // (mutable: the factors of a deferred factorisation are computed by the first query)
   using Columns = Eigen::Matrix<double, 6, kMaxDof>;
-  Columns a_;
-  Matrix6 q_;
-  Vector6 tau_, ztau_;    // Q's and Z's reflector coefficients
-  int perm_[kMaxDof];     // column k of A Pi is column perm_[k] of A
+  mutable Columns a_;
+  mutable Matrix6 q_;
+  mutable Vector6 tau_, ztau_;  // Q's and Z's reflector coefficients
+  mutable int perm_[kMaxDof];   // column k of A Pi is column perm_[k] of A
   int m_ = 0;             // columns of J
   Columns J_;             // J, or V^T J for a full W (first m_ columns)
   Vector6 w_;             // the diagonal weights s_, s_inv_, free_ were derived from
@@ -78,15 +87,17 @@ class WeightedProjector {
   Vector6 free_;          // 1 where the weight is 0, else 0
   double s_min_ = kInf, s_max_ = 0.0;  // the least and largest of s_ > 0: kappa(S)
   int support_ = 0;       // weights > 0: the rank sqrt(W) J can have at most
-  Vector6 q_null_ = Vector6::Zero();  // every weight > 0 and rank 5: Q's last column (A^T q_null_ = 0)
+  // every weight > 0 and rank 5: Q's last column (A^T q_null_ = 0)
+  mutable Vector6 q_null_ = Vector6::Zero();
   Matrix6 V_;             // eigenvectors of a full W (rotated_ only)
-  double n2_[kMaxDof] = {};  // while factorising: squared norms of the columns' rows k..5
-  double cut_ = 0.0;      // while factorising: (kPinvTolerance |R_00|)^2
-  int rank_ = 0;
-  bool w_finite_ = true;  // w_ finite
-  bool finite_ = true;    // J and W finite
-  bool rotated_ = false;  // full W: everything is in the frame V^T
-  bool split_ = true;     // see compute_all()
+  mutable double n2_[kMaxDof] = {};  // while factorising: squared norms of rows k..5
+  mutable double cut_ = 0.0;         // while factorising: (kPinvTolerance |R_00|)^2
+  mutable int rank_ = 0;
+  bool w_finite_ = true;            // w_ finite
+  mutable bool finite_ = true;      // J and W finite
+  bool rotated_ = false;            // full W: everything is in the frame V^T
+  mutable bool split_ = true;       // see compute_all()
+  mutable bool deferred_ = false;   // rank_ certified, the factorisation not yet done
 };
 
 /// Range-space filter P(W) = W J (J^T W J)^+ J^T (eq. 5), W diagonal (a 6-vector).

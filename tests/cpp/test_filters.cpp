@@ -219,8 +219,15 @@ TEST(FilterProjector, FullRowRankOnTheWeightedAxesKeepsTheirWrenchesExactly) {
     Jacobian J(6, m);
     for (int j = 0; j < m; ++j)
       for (int i = 0; i < 6; ++i) J(i, j) = g(rng);
-    const bool deficient = trial % 5 == 0;
-    if (deficient) J.row(2) = 0.5 * J.row(0) - 2.0 * J.row(1);  // rank 2 on the weighted rows
+    // rank 2 on the weighted rows: exactly, or to 1e-13 (below the rank cut, where no
+    // certificate may claim rank 3); 1e-7 is rank 3 again (found by the QR)
+    const int kind = trial % 5;
+    const bool deficient = kind < 2;
+    if (kind < 3) {
+      const double off = kind == 0 ? 0.0 : kind == 1 ? 1e-13 : 1e-7;
+      J.row(2) = 0.5 * J.row(0) - 2.0 * J.row(1);
+      for (int j = 0; j < m; ++j) J(2, j) += off * g(rng);
+    }
     Vector6 x = Vector6::Zero();
     for (int i = 0; i < 3; ++i) x[i] = g(rng);
     WeightedProjector p;
