@@ -170,6 +170,19 @@ std::vector<double> sample_parameters(const Eigen::VectorXd& U, int n, int p, in
 
 int samples_per_span(int p) { return std::max(8, 2 * p); }
 
+// The largest multiplicity of a knot strictly inside the domain [U[p], U[n]] (0: none).
+int interior_multiplicity(const Eigen::VectorXd& U, int n, int p) noexcept {
+  int most = 0;
+  for (int i = p + 1; i < n; ++i) {
+    if (!(U[i] > U[p] && U[i] < U[n])) continue;
+    int k = 1;
+    while (i + k < n && U[i + k] == U[i]) ++k;
+    most = std::max(most, k);
+    i += k - 1;
+  }
+  return most;
+}
+
 // ---- closest point: projected Newton with Levenberg-Marquardt safeguard ----------------
 
 // Minimises f(x) = |S(x) - p|^2 / 2 over the box [lo, hi] from x (refined in place);
@@ -188,6 +201,7 @@ double refine(Eigen::Matrix<double, N, 1>& x, const Eigen::Matrix<double, N, 1>&
     const double w = hi[i] - lo[i];
     scale[i] = std::isfinite(w) ? w : 1.0;
   }
+  double last = 0.0;  // the last full Newton step (scaled), 0 if the last was not one
   for (int it = 0; it < 100; ++it) {
     // active set: at a bound with the gradient pointing out of the box
     bool free[N];
@@ -258,12 +272,17 @@ double refine(Eigen::Matrix<double, N, 1>& x, const Eigen::Matrix<double, N, 1>&
       accepted = search(di, false);
     }
     if (!accepted) break;
-    const Vec step = xn - x;
+    const double a = ((xn - x).cwiseAbs().array() / scale.array()).maxCoeff();
+    const bool newton = mu == 0.0 && xn == Vec((x + d).cwiseMax(lo).cwiseMin(hi));
     x = xn;
     f = fn;
     g = gn;
     H = Hn;
-    if ((step.cwiseAbs().array() <= 1e-15 * scale.array()).all()) break;
+    if (a <= 1e-15) break;
+    // Newton's error falls as e' = K e^2: after two full Newton steps K ~ a / last^2, and
+    // the next step would be ~ a^3 / last^2; at rounding level it is not taken
+    if (newton && last > 0.0 && a * a * a <= 1e-15 * last * last) break;
+    last = newton ? a : 0.0;
   }
   return f;
 }
@@ -566,6 +585,9 @@ NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::
       pw_(3, c) = weights(i, j);
     }
   }
+  // C^2 across a knot of multiplicity k needs degree - k >= 2
+  kinked_ = interior_multiplicity(knots_u_, nu_, p_) > p_ - 2 ||
+            interior_multiplicity(knots_v_, nv_, q_) > q_ - 2;
   sample_u_ = sample_parameters(knots_u_, nu_, p_, samples_per_span(p_));
   sample_v_ = sample_parameters(knots_v_, nv_, q_, samples_per_span(q_));
   sample_p_.reserve(sample_u_.size() * sample_v_.size());
@@ -722,9 +744,10 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
       best_x = x;
     }
   }
-  // polish: along a crease (a knot of full multiplicity) the coupled steps zigzag; the
-  // 1-D problems with u, then v held, then both free again settle them
-  for (int round = 0; round < 3 && best.count > 0; ++round) {
+  // polish: along a crease (a knot of full multiplicity), or a knot where the Hessian jumps,
+  // the coupled steps zigzag; the 1-D problems with u, then v held, then both free again
+  // settle them (a C^2 surface has no such line)
+  for (int round = 0; round < 3 && best.count > 0 && kinked_; ++round) {
     const double f0 = best_f;
     for (int fixed = 0; fixed < 3; ++fixed) {
       Eigen::Vector2d lo = lower_, hi = upper_, x = best_x;

@@ -169,6 +169,7 @@ class NurbsSurface final : public Surface {
   std::vector<double> sample_u_, sample_v_;
   // index i * sample_v_.size() + j: the point and its first derivatives S_u, S_v
   std::vector<Eigen::Vector3d> sample_p_, sample_su_, sample_sv_;
+  bool kinked_ = false;  // an interior knot across which the surface is not C^2
 };
 
 /// Sphere S(u, v) = c + r (cos u cos v e1 + sin u cos v e2 + sin v a): u the longitude in
