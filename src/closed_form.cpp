@@ -277,12 +277,15 @@ struct StylusCost {
 
   double value(const Eigen::Vector3d& u) const noexcept {
     bool lifted;
-    const double ang = std::atan2(u.cross(u_R).norm(), u.dot(u_R));
+    const double s = u.cross(u_R).norm(), c = u.dot(u_R);
+    const double ang = s == 0.0 && c > 0.0 ? 0.0 : std::atan2(s, c);  // (atan2's own 0)
     return w_p * set.residual(p_R - L * u, lifted).squaredNorm() + w_r * ang * ang;
   }
 
-  // the ambient gradient g and Hessian H of f at u (as a function on R^3)
-  void derivatives(const Eigen::Vector3d& u, Eigen::Vector3d& g, Eigen::Matrix3d& H) const noexcept {
+  // the ambient gradient g and Hessian H of f at u (as a function on R^3), and f(u) (as
+  // value() gives it)
+  void derivatives(const Eigen::Vector3d& u, Eigen::Vector3d& g, Eigen::Matrix3d& H,
+                   double& f) const noexcept {
     bool lifted;
     const Eigen::Vector3d r = set.residual(p_R - L * u, lifted);
     // dist^2 is piecewise quadratic: its Hessian is 2 (I - f f^T - [lifted] o o^T)
@@ -292,19 +295,21 @@ struct StylusCost {
     acos_squared_terms(u.dot(u_R), u.cross(u_R).norm(), ang, h, dh);
     g = -2.0 * w_p * L * r - 2.0 * w_r * h * u_R;
     H = 2.0 * w_p * L * L * P - 2.0 * w_r * dh * u_R * u_R.transpose();
+    f = w_p * r.squaredNorm() + w_r * ang * ang;
   }
 };
 
 // Newton's method on the sphere from u (gradient steps where the Hessian is not positive
 // definite, an Armijo backtracking line search, the exponential map as retraction)
 Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& value) noexcept {
-  value = f.value(u);
-  bool stale = false;  // value is f(u)'s unless a quadratic-phase step moved u since
+  bool stale = true;  // value is f(u)'s unless u moved since the last derivatives
+  double last = 0.0;  // the last quadratic-phase Newton step, 0 if the last was not one
   const double scale = f.w_p * f.L * f.L + f.w_r;
   for (int it = 0; it < 60; ++it) {
     Eigen::Vector3d g;
     Eigen::Matrix3d H;
-    f.derivatives(u, g, H);
+    f.derivatives(u, g, H, value);
+    stale = false;
     Eigen::Matrix<double, 3, 2> E;
     E.col(0) = any_orthogonal(u);
     E.col(1) = u.cross(E.col(0));
@@ -346,12 +351,13 @@ Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& va
       u = (cn * u + sn_n * (E * step)).normalized();
       stale = true;
       if (n <= 1e-15) break;
+      // Newton's error falls as e' = K e^2, K ~ n / last^2 from the last two steps: where
+      // the next step would be ~ n^3 / last^2 <= 1e-15, it is not taken
+      if (last > 0.0 && n * n * n <= 1e-15 * last * last) break;
+      last = n;
       continue;
     }
-    if (stale) {
-      value = f.value(u);
-      stale = false;
-    }
+    last = 0.0;
     const double slope = std::min(g2.dot(step), 0.0);  // 0 only at a saddle
     double t = 1.0;
     bool accepted = false;
@@ -445,6 +451,7 @@ LineCaps beyond_reach_cap(const StylusCost& f, const Eigen::Vector3d& w, LineCap
   const double r0 = caps.x0.norm();
   if (!(r0 > 1.0)) return caps;
   caps.rho = std::sqrt(2.0 * std::max(0.0, 1.0 - r0 + caps.eps));
+  caps.chord = caps.rho;
   caps.centre[0] = w / w.norm();
   // the cap's geodesic radius 2 asin(rho / 2) below pi / 4: rho below 2 sin(pi / 8)
   if (!(caps.rho < 0.7653668647301796)) return caps;
@@ -474,6 +481,9 @@ LineCaps line_caps(const StylusCost& f, const Eigen::Vector3d& w, double value) 
   if (!(reach < 1.0)) return beyond_reach_cap(f, w, caps);
   const double z_min = std::sqrt((1.0 - reach) * (1.0 + reach));
   const double z0 = std::sqrt((1.0 - r0) * (1.0 + r0));
+  // u - centre = (x - x0) + s (z(x) - z0) e, z Lipschitz with constant (|x0| + eps) / z_min
+  // on the disk: |u - centre| <= eps sqrt(1 + (|x0| + eps)^2 / z_min^2) = eps / z_min
+  caps.chord = caps.eps / z_min;
   const double b = f.u_R.dot(e);
   const double position = 2.0 * f.w_p * f.L * f.L;
   for (int i = 0; i < 2; ++i) {
@@ -547,6 +557,10 @@ Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
       bool in_cap = false;
       for (int i = 0; i < n_ends && !in_cap; ++i) in_cap = cap_holds(caps, c, ends[i], e);
       if (in_cap) continue;
+      // no direction of the cap below the lowest cost found: f >= w_r angle(u, u_R)^2 >=
+      // w_r |u - u_R|^2 (a chord is at most its angle), |u - u_R| >= |centre - u_R| - chord
+      const double gap = std::max(0.0, (caps.centre[c] - f.u_R).norm() - caps.chord);
+      if (f.w_r * gap * gap > best_value * (1.0 + 1e-12)) continue;
       descend(caps.centre[c]);  // the cap's one local minimum, if the descent stays on it
       found = cap_holds(caps, c, ends[n_ends - 1], e);
     }

@@ -107,6 +107,7 @@ struct LineCaps {
   Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
   double eps = 0.0;
   double rho = -1.0;  //!< the one cap's chord beyond the reach; -1 for two caps
+  double chord = 0.0; //!< every direction u on a cap has |u - centre| <= chord
   int count = 0;      //!< 0: no certificate
 };
 

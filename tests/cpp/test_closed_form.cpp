@@ -140,7 +140,8 @@ bool certified_problem(std::mt19937& rng, Problem& p, LineCaps& caps, double& va
 TEST(LineCertificates, EveryDirectionAsLowAsTheValueLiesInACap) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> U(0.0, 1.0);
-  int certified = 0, checked = 0;
+  int certified = 0, checked = 0, on_cap = 0;
+  double max_ratio = 0.0;
   for (int k = 0; k < kProblems; ++k) {
     Problem p;
     LineCaps caps;
@@ -160,10 +161,22 @@ TEST(LineCertificates, EveryDirectionAsLowAsTheValueLiesInACap) {
                         (caps.count == 2 && virtmech::detail::cap_holds(caps, 1, u, p.line.free));
         ASSERT_TRUE(on) << "problem " << k << " cap " << i;
       }
+      // and every direction on a cap within its chord of the centre (which rules a cap out
+      // where even that near u_R costs more than the value)
+      for (int j = 0; j < 200; ++j) {
+        const Vector3d u =
+            (caps.centre[i] + 3.0 * size * U(rng) * random_unit(rng)).normalized();
+        if (!virtmech::detail::cap_holds(caps, i, u, p.line.free)) continue;
+        ++on_cap;
+        ASSERT_LE((u - caps.centre[i]).norm(), caps.chord * (1.0 + 1e-12)) << "problem " << k;
+        max_ratio = std::max(max_ratio, (u - caps.centre[i]).norm() / caps.chord);
+      }
     }
   }
   EXPECT_GT(certified, kProblems / 3);
   EXPECT_GT(checked, 10000);
+  EXPECT_GT(on_cap, 10000);
+  EXPECT_GT(max_ratio, 0.5);  // the bound is not loose by more than a factor of two
 }
 
 TEST(LineCertificates, TheCostIsStrictlyConvexOnEveryCertifiedCap) {
