@@ -39,6 +39,7 @@ void WeightedProjector::compute(const Jacobian& J, const Vector6& w) noexcept {
 
 void WeightedProjector::set(const Jacobian& J, const Vector6& w) noexcept {
   rotated_ = false;
+  null_ready_ = false;
   m_ = static_cast<int>(J.cols());
   for (int j = 0; j < m_; ++j) J_.col(j) = J.col(j);
   // a projector is mostly refactorised with the same weights (the controller keeps one per
@@ -330,6 +331,7 @@ void WeightedProjector::finish_factorisation() const noexcept {
     ztau_[k] = make_reflector(a[k + 6 * k], z, 6, m - r);
     for (int i = 0; i < k; ++i) reflect(ztau_[k], z, 6, a[i + 6 * k], a + i + 6 * r, 6, m - r);
   }
+  null_ready_ = false;
   if (r == 5 && support_ == 6) {  // the left null space of A, for residual()
     q_null_ = Vector6::Unit(5);
     apply_q(q_, tau_, 5, q_null_);
@@ -341,6 +343,10 @@ void WeightedProjector::finish_factorisation() const noexcept {
     tmax = std::max(tmax, std::abs(a_(i, i)));
   }
   split_ = s_max_ * tmin <= tmax * s_min_;  // kappa(S) <= kappa(T)
+  // residual()'s -S^-1 q (q^T S v) errs by eps kappa(S) |v| (q^T S v is small, its terms are
+  // not, and S^-1 scales it back): within 16 times the fit's eps kappa(A) where kappa(S) <=
+  // 16 kappa(T) (kappa(T) = |R_00| / |R_44| <= kappa(A))
+  null_ready_ = r == 5 && support_ == 6 && s_max_ * tmin <= 16.0 * tmax * s_min_;
 }
 
 Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
@@ -407,11 +413,11 @@ Vector6 WeightedProjector::residual(const Vector6& v_in) const noexcept {
   const Vector6 v = rotated_ ? Vector6(V_.transpose() * v_in) : v_in;
   Vector6 out;
   if (support_ != 6 || rank_ != 6) factorise();
-  if (support_ == 6 && rank_ >= 5) {
-    // S (J theta_dot - v) = -(I - Q1 Q1^T) S v = -Q2 Q2^T S v: Q2 is Q's last column at
-    // rank 5 (A of full row rank at 6: no residual)
-    out = rank_ == 6 ? Vector6::Zero()
-                     : Vector6(-q_null_.dot(s_.cwiseProduct(v)) * s_inv_.cwiseProduct(q_null_));
+  if (support_ == 6 && rank_ == 6) {
+    out.setZero();  // A of full row rank: every twist followed
+  } else if (null_ready_) {
+    // S (J theta_dot - v) = -(I - Q1 Q1^T) S v = -Q2 Q2^T S v, Q2 Q's last column
+    out = -q_null_.dot(s_.cwiseProduct(v)) * s_inv_.cwiseProduct(q_null_);
   } else {
     JointVector theta_dot;
     fit(v, theta_dot);

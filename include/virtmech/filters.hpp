@@ -45,8 +45,10 @@ class WeightedProjector {
   /// placement's joint rate for a handle twist v.
   void fit(const Vector6& v, JointVector& theta_dot) const noexcept;
   /// J theta_dot - v for theta_dot = fit(v): the part of the twist v the columns do not
-  /// follow. With every weight > 0 it is -W^-1 n (n^T v) / (n^T W^-1 n) where J has one left
-  /// null vector n (rank 5: n from Q's last column, no fit), and 0 at rank 6.
+  /// follow. With every weight > 0 it is 0 at rank 6, and at rank 5 -W^-1 n (n^T v) /
+  /// (n^T W^-1 n), n = S q J's left null vector (q Q's last column: one dot product, no
+  /// fit) where the weights spread less than sqrt(W) J is ill-conditioned (16 kappa(T)),
+  /// so that it is as accurate as the fit; otherwise J fit(v) - v.
   Vector6 residual(const Vector6& v) const noexcept;
   /// Numerical rank of sqrt(W) J.
   int rank() const noexcept { return rank_; }
@@ -89,6 +91,7 @@ class WeightedProjector {
   int support_ = 0;       // weights > 0: the rank sqrt(W) J can have at most
   // every weight > 0 and rank 5: Q's last column (A^T q_null_ = 0)
   mutable Vector6 q_null_ = Vector6::Zero();
+  mutable bool null_ready_ = false;  // q_null_ is residual()'s
   Matrix6 V_;             // eigenvectors of a full W (rotated_ only)
   mutable double n2_[kMaxDof] = {};  // while factorising: squared norms of rows k..5
   mutable double cut_ = 0.0;         // while factorising: (kPinvTolerance |R_00|)^2

@@ -264,6 +264,13 @@ TEST(FilterProjector, ResidualIsTheWeightedLeastSquaresResidual) {
     for (int i = 0; i < 6; ++i) w[i] = std::pow(10.0, -8.0 * u(rng));
     if (trial % 2) w << 1.0, 1.0, 1.0, 1e-8, 1e-8, 1e-8;
     if (trial % 7 == 3) w[trial % 6] = 0.0;
+    if (trial % 5 == 4) {
+      // sqrt(W) J well-conditioned although the weights spread: as many heavy rows as
+      // columns, the light rows' motion following from theirs (the residual there is all
+      // in the light rows, and small against the heavy rows' part of S v)
+      for (int i = 0; i < 6; ++i) w[i] = i < m ? 1.0 : 1e-8;
+      J.topRows(m) = random_orthogonal(rng, m);
+    }
     Vector6 v;
     for (int i = 0; i < 6; ++i) v[i] = g(rng);
     WeightedProjector p;
@@ -290,7 +297,7 @@ TEST(FilterProjector, ResidualIsTheWeightedLeastSquaresResidual) {
     EXPECT_LE((r - ref).norm(), 1e-13 * kappa * v.norm()) << trial;
     EXPECT_LE(sd.cwiseProduct(r - ref).norm(), 1e-14 * kappa * sd.cwiseProduct(v).norm()) << trial;
   }
-  EXPECT_GT(rank5, 1000);  // the formula's case was exercised
+  EXPECT_GT(rank5, 1000);  // the one-dot-product case was exercised
 }
 
 TEST(FilterProjector, FitIsTheWeightedMinimumNormSolution) {
