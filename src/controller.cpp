@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "flush_denormals.hpp"
 #include "small_products.hpp"
 #include "track_detail.hpp"
 #include "virtmech/filters.hpp"
@@ -625,13 +626,25 @@ std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
 
 std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& out,
                                double t_s) noexcept {
-  const std::uint32_t placed = place(q, dq, out, t_s);
+  const detail::FlushDenormals flush;
+  const std::uint32_t placed = place_cycle(q, dq, out, t_s);
   if (placed & status::kFaultMask) return placed;
-  return render(out);
+  return render_cycle(out);
 }
 
 std::uint32_t Controller::place(const double* q, const double* dq, CycleOutput& out,
                                 double t_s) noexcept {
+  const detail::FlushDenormals flush;
+  return place_cycle(q, dq, out, t_s);
+}
+
+std::uint32_t Controller::render(CycleOutput& out) noexcept {
+  const detail::FlushDenormals flush;
+  return render_cycle(out);
+}
+
+std::uint32_t Controller::place_cycle(const double* q, const double* dq, CycleOutput& out,
+                                      double t_s) noexcept {
   ControllerData& d = data_;
   d.cycle_start = std::chrono::steady_clock::now();
   const Device& dev = *device_;
@@ -674,7 +687,7 @@ std::uint32_t Controller::place(const double* q, const double* dq, CycleOutput& 
   return out.status;
 }
 
-std::uint32_t Controller::render(CycleOutput& out) noexcept {
+std::uint32_t Controller::render_cycle(CycleOutput& out) noexcept {
   const Device& dev = *device_;
   const Mechanism& mech = *mechanism_;
   const ControllerModel& M = model_;

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "flush_denormals.hpp"
 #include "small_products.hpp"
 #include "virtmech/validate.hpp"
 
@@ -79,6 +80,7 @@ double member_distance(const Mechanism& mech, const CycleOutput& o) noexcept {
 
 std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSetOutput& out,
                                  double t_s) noexcept {
+  const detail::FlushDenormals flush;
   const int n = size();
   out.size = n;
   out.contact = 0;

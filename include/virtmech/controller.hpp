@@ -210,7 +210,11 @@ class Controller {
              const ControllerSettings& settings = ControllerSettings());
 
   /// One servo cycle: q, dq (device joints, dof() each) in, out filled. t_s is the cycle's
-  /// time stamp [s] for the watchdog (NaN: untimed). noexcept, allocation-free.
+  /// time stamp [s] for the watchdog (NaN: untimed). noexcept, allocation-free. Its
+  /// arithmetic runs with subnormal numbers flushed to zero (x86 FTZ/DAZ, AArch64 FZ; no
+  /// quantity of the cycle means anything at 1e-308, and one converging to an exact zero
+  /// would otherwise slow every operation on it a hundredfold); the caller's floating-point
+  /// mode is restored before it returns. place() and render() below do the same.
   std::uint32_t step(const double* q, const double* dq, CycleOutput& out,
                      double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
   /// As above, with sizes checked (a wrong size is the fault kFaultBadSize).
@@ -251,6 +255,10 @@ class Controller {
   const CycleOutput& last() const noexcept { return data_.last; }
 
  private:
+  // place() and render() without setting the floating-point mode (step() sets it once)
+  std::uint32_t place_cycle(const double* q, const double* dq, CycleOutput& out,
+                            double t_s) noexcept;
+  std::uint32_t render_cycle(CycleOutput& out) noexcept;
   std::uint32_t finish(CycleOutput& out) noexcept;  // the cycle's time; last()
 
   std::shared_ptr<const Device> device_;
