@@ -673,6 +673,7 @@ bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
   const double lo = curve.lower(), hi = curve.upper();
   if (!(s >= lo && s <= hi) || !(w_p > 0.0)) return false;
   u.normalize();
+  double last = 0.0;  // the last full Newton step (scaled), 0 if the last was not one
   const auto cost = [&](double s_, const Eigen::Vector3d& u_) {
     const Eigen::Vector3d r = curve.evaluate(s_) + L * u_ - p_R;
     const double ang = std::atan2(u_.cross(u_R).norm(), u_.dot(u_R));
@@ -752,8 +753,13 @@ bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
     s = s_new;
     u = u_new;
     // converged: a full Newton step that moved the tip and the stylus by rounding noise (the
-    // next would be its square)
-    if (newton && scale == 1.0 && moved <= 1e-12 * L && n <= 1e-12) return true;
+    // next would be its square); or, after two full Newton steps, one whose successor would
+    // (Newton's error falls as e' = K e^2, K ~ a / last^2: the next step ~ a^3 / last^2)
+    const bool full = newton && scale == 1.0;
+    const double a = std::max(moved / L, n);
+    if (full && a <= 1e-12) return true;
+    if (full && last > 0.0 && a * a * a <= 1e-12 * last * last) return true;
+    last = full ? a : 0.0;
   }
   return false;
 }
