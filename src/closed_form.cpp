@@ -729,8 +729,12 @@ bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
     const auto moved_to = [&](double t, double& s_t, Eigen::Vector3d& u_t) {
       s_t = s + t * step[0];
       const double n = t * step.tail<2>().norm();
-      u_t = n > 0.0 ? Eigen::Vector3d((std::cos(n) * u + (std::sin(n) / n) * t *
-                                      (E * step.tail<2>())).normalized())
+      // cos n and sin(n) / n; below 1e-3 by their Taylor polynomials (next terms n^6 / 720
+      // and n^6 / 5040 relative, below 1e-20), as on the sphere
+      const double n2 = n * n;
+      const double cn = n < 1e-3 ? 1.0 - n2 * (0.5 - n2 * (1.0 / 24.0)) : std::cos(n);
+      const double sn_n = n < 1e-3 ? 1.0 - n2 * (1.0 / 6.0 - n2 * (1.0 / 120.0)) : std::sin(n) / n;
+      u_t = n > 0.0 ? Eigen::Vector3d((cn * u + sn_n * t * (E * step.tail<2>())).normalized())
                     : u;
     };
     double s_new;

@@ -119,6 +119,22 @@ inline bool cap_holds(const LineCaps& caps, int i, const Eigen::Vector3d& u,
   return (i == 0 ? z > 0.0 : z < 0.0) && (u - z * e - caps.x0).norm() <= caps.eps;
 }
 
+/// The stylus's tip-to-handle direction at wrist angles abc = (a, b, c): B Rx(a) Ry(b) z.
+Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noexcept;
+
+/// The wrist of a probe-like mechanism whose tip is at `tip`, for handle orientation R =
+/// exp([turn]x) R_target (R_tip = R Rx(pi)): the wrist angles over the base B nearest
+/// start[0..2] into theta from index `wrist`, and the handle pose, the wrist's columns of J
+/// (wrist .. wrist + 2; J sized by the caller, its earlier columns the caller's) and the
+/// pose error, built from R, the tip and the turn instead of by walking the chain: the
+/// wrist's axes are B x, B Rx(a) y and the stylus, all through the tip, a's cosine and sine
+/// come with the angles, and the error's rotation is -turn. The chain's forward_jacobian and
+/// pose_error to rounding, without their sines, cosines and logarithm.
+void wrist_at_tip(const Eigen::Matrix3d& B, const Eigen::Vector3d& tip, double length,
+                  const Pose& target, const Eigen::Matrix3d& R, const Eigen::Vector3d& turn,
+                  const double* start, int wrist, JointVector& theta, Pose& T, Jacobian& J,
+                  Vector6& e) noexcept;
+
 /// The caps above for a tip held to `line` (the handle at p_R, its stylus direction u_R).
 LineCaps line_caps(const TipSet& line, const Eigen::Vector3d& p_R, const Eigen::Vector3d& u_R,
                    double length, double w_p, double w_r, double value) noexcept;

@@ -237,6 +237,34 @@ Probe::Probe(const Eigen::Vector3d& plane_point, const Eigen::Vector3d& plane_no
   if (unilateral) set_contact_joint(2);
 }
 
+namespace detail {
+
+void wrist_at_tip(const Eigen::Matrix3d& B, const Eigen::Vector3d& tip, double length,
+                  const Pose& target, const Eigen::Matrix3d& R, const Eigen::Vector3d& turn,
+                  const double* start, int wrist, JointVector& theta, Pose& T, Jacobian& J,
+                  Vector6& e) noexcept {
+  Eigen::Matrix3d R_tip;
+  R_tip << R.col(0), -R.col(1), -R.col(2);
+  double ca, sa;
+  theta.segment<3>(wrist) =
+      euler_xyz_nearest(B.transpose() * R_tip, Eigen::Vector3d(start[0], start[1], start[2]), ca, sa);
+  const Eigen::Vector3d arm = -length * R.col(2);  // tip to handle
+  T.linear() = R;
+  T.translation() = tip + arm;
+  T.makeAffine();
+  const Eigen::Vector3d axes[3] = {B.col(0), ca * B.col(1) + sa * B.col(2), R_tip.col(2)};
+  for (int i = 0; i < 3; ++i) J.col(wrist + i) << axes[i].cross(arm), axes[i];
+  e << target.translation() - T.translation(), -turn;
+}
+
+Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noexcept {
+  const double sa = std::sin(abc[0]), ca = std::cos(abc[0]);
+  const double sb = std::sin(abc[1]), cb = std::cos(abc[1]);
+  return B * Eigen::Vector3d(sb, -sa * cb, ca * cb);
+}
+
+}  // namespace detail
+
 namespace {
 
 // the tip frame [t1, n x t1, n] of probe-like mechanisms
@@ -246,29 +274,13 @@ Eigen::Matrix3d tip_base(const Eigen::Vector3d& n, const Eigen::Vector3d& t1) {
   return B;
 }
 
-// the stylus's tip-to-handle direction at wrist angles (a, b, c): B Rx(a) Ry(b) z
-Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noexcept {
-  const double sa = std::sin(abc[0]), ca = std::cos(abc[0]);
-  const double sb = std::sin(abc[1]), cb = std::cos(abc[1]);
-  return B * Eigen::Vector3d(sb, -sa * cb, ca * cb);
-}
-
-// The wrist angles for handle orientation R = exp([turn]x) R_target (R_tip = R Rx(pi)),
-// nearest the start's, into theta from index `wrist` (the joints before it, already in
-// theta, slide the tip from `origin` along the columns slides[i] of B); and the handle pose,
-// Jacobian and pose error at theta, built from R, the tip and the turn instead of by walking
-// the chain: the wrist's axes are B x, B Rx(a) y and the stylus, all through the tip, a's
-// cosine and sine come with the angles, and the error's rotation is -turn. The chain's
-// forward_jacobian and pose_error to rounding, without their sines, cosines and logarithm.
+// The slides' part of a probe-like placement: the tip moved from `origin` by theta[i] along
+// the columns slides[i] of B (i < wrist), their columns of J; then the wrist
+// (detail::wrist_at_tip).
 void place_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& origin, const int* slides,
                  double length, const Pose& target, const Eigen::Matrix3d& R,
                  const Eigen::Vector3d& turn, const JointVector& start, int wrist,
                  JointVector& theta, Pose& T, Jacobian& J, Vector6& e) noexcept {
-  Eigen::Matrix3d R_tip;
-  R_tip << R.col(0), -R.col(1), -R.col(2);
-  double ca, sa;
-  theta.segment<3>(wrist) = detail::euler_xyz_nearest(
-      B.transpose() * R_tip, Eigen::Vector3d(start.segment<3>(wrist)), ca, sa);
   J.resize(6, wrist + 3);
   Eigen::Vector3d tip = origin;
   for (int i = 0; i < wrist; ++i) {
@@ -276,13 +288,8 @@ void place_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& origin, const 
     tip += theta[i] * slide;
     J.col(i) << slide, 0.0, 0.0, 0.0;
   }
-  const Eigen::Vector3d arm = -length * R.col(2);  // tip to handle
-  T.linear() = R;
-  T.translation() = tip + arm;
-  T.makeAffine();
-  const Eigen::Vector3d axes[3] = {B.col(0), ca * B.col(1) + sa * B.col(2), R_tip.col(2)};
-  for (int i = 0; i < 3; ++i) J.col(wrist + i) << axes[i].cross(arm), axes[i];
-  e << target.translation() - T.translation(), -turn;
+  detail::wrist_at_tip(B, tip, length, target, R, turn, start.data() + wrist, wrist, theta, T,
+                       J, e);
 }
 
 }  // namespace
@@ -306,7 +313,7 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
   }
   Eigen::Matrix3d R;
   Eigen::Vector3d turn;
-  const auto start_direction = [&] { return wrist_direction(B, start.data() + wrist); };
+  const auto start_direction = [&] { return detail::wrist_direction(B, start.data() + wrist); };
   detail::tilt_about_axis(target.linear(), normal_, cost, w_p, w_r,
                           detail::LazyDirection(start_direction), R, turn);
   // the tip below the handle for that orientation, brought onto the plane (or left in
@@ -337,7 +344,7 @@ void place_on_tip_set(const detail::TipSet& set, double length, const Eigen::Mat
                       double& lift) noexcept {
   const Eigen::Vector3d u =
       detail::stylus_direction(set, target.translation(), length, target.linear(),
-                               wrist_direction(B, start.data() + wrist), w_p, w_r);
+                               detail::wrist_direction(B, start.data() + wrist), w_p, w_r);
   R = detail::turn_stylus(target.linear(), u, turn);
   const Eigen::Vector3d q = target.translation() - length * u - set.point;
   along = set.free.dot(q);

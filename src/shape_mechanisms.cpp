@@ -316,7 +316,7 @@ bool CurveGuide::place(const Pose& target, const Vector6& w, const JointVector& 
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   double s = start[0];
-  Eigen::Vector3d u = (base_ * euler_xyz(start.data() + 1)).col(2);  // tip to handle
+  Eigen::Vector3d u = detail::wrist_direction(base_, start.data() + 1);  // tip to handle
   if (!detail::curve_stylus_newton(*curve_, target.translation(), -target.linear().col(2),
                                    length_, w_p, w_r, s, u)) {
     return false;
@@ -325,9 +325,12 @@ bool CurveGuide::place(const Pose& target, const Vector6& w, const JointVector& 
   const Eigen::Matrix3d R = detail::turn_stylus(target.linear(), u, turn);
   theta.resize(4);
   theta[0] = s;
-  theta.segment<3>(1) = wrist_angles(base_, R, Eigen::Vector3d(start.segment<3>(1)));
-  forward_jacobian(theta.data(), T, J);
-  e = pose_error(target, T);
+  CurveDerivatives d;
+  curve_->derivatives(s, 1, d);
+  J.resize(6, 4);
+  J.col(0) << d.col(1), 0.0, 0.0, 0.0;
+  detail::wrist_at_tip(base_, d.col(0), length_, target, R, turn, start.data() + 1, 1, theta, T,
+                       J, e);
   return true;
 }
 

@@ -254,3 +254,58 @@ TEST(LineCertificates, TheCapAboutTheHandleIsConvexWhereCertified) {
 }
 
 }  // namespace
+
+#include "test_support.hpp"
+#include "virtmech/virtmech.hpp"
+
+// A place() hook returns the pose, Jacobian and pose error it builds from its solution
+// (without walking the chain): they must be the mechanism's own forward_jacobian and
+// pose_error at the joint values it returns, for every mechanism with a hook.
+TEST(PlaceHooks, ReturnTheChainsPoseJacobianAndError) {
+  using namespace virtmech;
+  const Vector3d n = Vector3d(0.2, 1.0, -0.3).normalized(), p0(0.01, -0.02, 0.03);
+  const Vector3d t = n.cross(Vector3d::UnitZ()).normalized();
+  const std::vector<std::pair<const char*, std::shared_ptr<Mechanism>>> mechanisms = {
+      {"PlanarArm", std::make_shared<PlanarArm>(p0, n, 0.1, t)},
+      {"Probe", std::make_shared<Probe>(p0, n, 0.1, Vector3d(Vector3d::Zero()))},
+      {"Probe/unilateral", std::make_shared<Probe>(p0, n, 0.1, Vector3d(Vector3d::Zero()), true)},
+      {"PointPivot", std::make_shared<PointPivot>(p0, n, 0.1, Vector3d(Vector3d::Zero()))},
+      {"LineGuide", std::make_shared<LineGuide>(p0, t, 0.1, n)},
+      {"LineGuide/unilateral", std::make_shared<LineGuide>(p0, t, 0.1, n, true)},
+      {"SurfaceProbe/sphere",
+       std::make_shared<SurfaceProbe>(std::make_shared<Sphere>(p0 - 0.05 * n, 0.05, t), 0.1)},
+      {"CurveGuide", std::make_shared<CurveGuide>(
+                         vmtest::test_letter(Vector3d(0.0, 0.0, -0.02)), 0.1,
+                         Vector3d(Vector3d::UnitZ()))},
+  };
+  std::mt19937 rng(23);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (const auto& [name, mech] : mechanisms) {
+    const double L = 0.1;
+    const std::vector<Vector6> weights = {
+        (Vector6() << 1, 1, 1, 1e-6 * L * L, 1e-6 * L * L, 1e-6 * L * L).finished(),
+        (Vector6() << 1e-6, 1e-6, 1e-6, L * L, L * L, L * L).finished(),
+        (Vector6() << 1, 1, 1, L * L, L * L, L * L).finished()};
+    int placed = 0;
+    for (int k = 0; k < 200; ++k) {
+      Pose target = Pose::Identity();
+      target.linear() = so3_exp(Vector3d(g(rng), g(rng), g(rng)));
+      target.translation() = p0 + 0.04 * Vector3d(g(rng), g(rng), g(rng));
+      const Vector6& w = weights[static_cast<size_t>(k % 3)];
+      JointVector theta;
+      Pose T;
+      Jacobian J;
+      Vector6 e;
+      if (!mech->place(target, w, mech->home(), theta, T, J, e)) continue;
+      ++placed;
+      Pose T_chain;
+      Jacobian J_chain;
+      mech->forward_jacobian(theta.data(), T_chain, J_chain);
+      ASSERT_EQ(J.cols(), J_chain.cols()) << name;
+      EXPECT_LE((T.matrix() - T_chain.matrix()).norm(), 1e-12) << name << " " << k;
+      EXPECT_LE((J - J_chain).norm(), 1e-12) << name << " " << k;
+      EXPECT_LE((e - pose_error(target, T_chain)).norm(), 1e-10) << name << " " << k;
+    }
+    EXPECT_GT(placed, 50) << name;  // (CurveGuide's Newton declines some, from home)
+  }
+}
