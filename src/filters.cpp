@@ -204,6 +204,9 @@ void WeightedProjector::compute_all(const Job* jobs, int count) noexcept {
 bool WeightedProjector::full_row_rank_certified() const noexcept {
   const int k = support_, m = m_;
   if (!finite_ || k == 0 || k > m) return false;
+  // every entry finite, the zero-weighted rows' too (a factorisation would find 0 * NaN and
+  // give NaN results, as documented)
+  if (!J_.leftCols(m).allFinite()) return false;
   int rows[6];
   int c = 0;
   for (int i = 0; i < 6; ++i) {
@@ -353,13 +356,13 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
   if (!finite_) return Vector6::Constant(std::numeric_limits<double>::quiet_NaN());
   if (rank_ == 0) return Vector6::Zero();
   const Vector6 x = rotated_ ? Vector6(V_.transpose() * x_in) : x_in;
-  const int r = rank_, m = m_;
-  if (r == support_ && free_.cwiseProduct(x).isZero(0.0)) {
+  if (rank_ == support_ && free_.cwiseProduct(x).isZero(0.0)) {
     // x on the weighted axes only, and sqrt(W) J of full row rank on them: Q1 spans those
     // axes, so P x = S Q1 Q1^T S^+ x is x itself (exactly; the zero-weight rows are 0)
     return rotated_ ? Vector6(V_ * x) : x;
   }
-  factorise();
+  factorise();  // (a certified rank is the factorisation's: rank_ stays)
+  const int r = rank_, m = m_;
   const double* a = a_.data();
   Vector6 g = Vector6::Zero();
   Vector6 xj = x;  // the part of x that goes through J^T
@@ -389,11 +392,11 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
 Vector6 WeightedProjector::null(const Vector6& x) const noexcept { return x - range(x); }
 
 void WeightedProjector::fit(const Vector6& v, JointVector& theta_dot) const noexcept {
+  factorise();
   const int r = rank_, m = m_;
   theta_dot.setZero(m);
   if (!finite_) theta_dot.setConstant(std::numeric_limits<double>::quiet_NaN());
   if (!finite_ || r == 0) return;
-  factorise();
   // A^+ S v = Pi Z [T^-1 (Q^T S v)_{0:r}; 0]
   const double* a = a_.data();
   Vector6 g = s_.cwiseProduct(rotated_ ? Vector6(V_.transpose() * v) : v);
@@ -409,10 +412,10 @@ void WeightedProjector::fit(const Vector6& v, JointVector& theta_dot) const noex
 }
 
 Vector6 WeightedProjector::residual(const Vector6& v_in) const noexcept {
+  if (support_ != 6 || rank_ != 6) factorise();
   if (!finite_) return Vector6::Constant(std::numeric_limits<double>::quiet_NaN());
   const Vector6 v = rotated_ ? Vector6(V_.transpose() * v_in) : v_in;
   Vector6 out;
-  if (support_ != 6 || rank_ != 6) factorise();
   if (support_ == 6 && rank_ == 6) {
     out.setZero();  // A of full row rank: every twist followed
   } else if (null_ready_) {
@@ -420,7 +423,7 @@ Vector6 WeightedProjector::residual(const Vector6& v_in) const noexcept {
     out = -q_null_.dot(s_.cwiseProduct(v)) * s_inv_.cwiseProduct(q_null_);
   } else {
     JointVector theta_dot;
-    fit(v, theta_dot);
+    fit(v_in, theta_dot);  // (fit rotates v_in itself)
     out = -v;
     for (int j = 0; j < m_; ++j) out += theta_dot[j] * J_.col(j);
   }

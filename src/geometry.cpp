@@ -272,7 +272,10 @@ double refine(Eigen::Matrix<double, N, 1>& x, const Eigen::Matrix<double, N, 1>&
       accepted = search(di, false);
     }
     if (!accepted) break;
-    const double a = ((xn - x).cwiseAbs().array() / scale.array()).maxCoeff();
+    double a = 0.0;  // the step, scaled (a coordinate held, lo = hi, has none)
+    for (int i = 0; i < N; ++i) {
+      if (scale[i] > 0.0) a = std::max(a, std::abs(xn[i] - x[i]) / scale[i]);
+    }
     const bool newton = mu == 0.0 && xn == Vec((x + d).cwiseMax(lo).cwiseMin(hi));
     x = xn;
     f = fn;
@@ -586,8 +589,9 @@ NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::
     }
   }
   // C^2 across a knot of multiplicity k needs degree - k >= 2
-  kinked_ = interior_multiplicity(knots_u_, nu_, p_) > p_ - 2 ||
-            interior_multiplicity(knots_v_, nv_, q_) > q_ - 2;
+  const int mu = interior_multiplicity(knots_u_, nu_, p_);
+  const int mv = interior_multiplicity(knots_v_, nv_, q_);
+  kinked_ = (mu > 0 && mu > p_ - 2) || (mv > 0 && mv > q_ - 2);
   sample_u_ = sample_parameters(knots_u_, nu_, p_, samples_per_span(p_));
   sample_v_ = sample_parameters(knots_v_, nv_, q_, samples_per_span(q_));
   sample_p_.reserve(sample_u_.size() * sample_v_.size());

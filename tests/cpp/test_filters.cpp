@@ -8,6 +8,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -298,6 +299,61 @@ TEST(FilterProjector, ResidualIsTheWeightedLeastSquaresResidual) {
     EXPECT_LE(sd.cwiseProduct(r - ref).norm(), 1e-14 * kappa * sd.cwiseProduct(v).norm()) << trial;
   }
   EXPECT_GT(rank5, 1000);  // the one-dot-product case was exercised
+}
+
+TEST(FilterProjector, ResidualWithAFullWeightMatrix) {
+  // W = M M^T (rank 6, 4 or 2): residual(v) = J theta - v, theta the weighted minimum-norm
+  // fit, against that fit from W's symmetric square root and a complete orthogonal
+  // decomposition (Eigen's)
+  std::mt19937 rng(29);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int m = 1 + trial % 6, rank_w = 6 - 2 * (trial % 3);
+    Jacobian J(6, m);
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < 6; ++i) J(i, j) = g(rng);
+    Dyn M(6, rank_w);
+    for (int j = 0; j < rank_w; ++j)
+      for (int i = 0; i < 6; ++i) M(i, j) = g(rng);
+    const Matrix6 W = M * M.transpose();
+    Vector6 v;
+    for (int i = 0; i < 6; ++i) v[i] = g(rng);
+    WeightedProjector p;
+    p.compute(J, W);
+    const Vector6 r = p.residual(v);
+    Eigen::SelfAdjointEigenSolver<Matrix6> eig(W);
+    // (eigenvalues at rounding level are W's zeros, as the projector reads them)
+    Vector6 lambda = eig.eigenvalues();
+    const double cut = 64.0 * std::numeric_limits<double>::epsilon() * lambda.maxCoeff();
+    for (int i = 0; i < 6; ++i) lambda[i] = lambda[i] > cut ? lambda[i] : 0.0;
+    const Matrix6 S = eig.eigenvectors() * lambda.cwiseSqrt().asDiagonal() *
+                      eig.eigenvectors().transpose();
+    const Dyn A = S * J;
+    Eigen::CompleteOrthogonalDecomposition<Dyn> cod(A.rows(), A.cols());
+    cod.setThreshold(1e-9);
+    cod.compute(A);
+    const Eigen::VectorXd theta = cod.solve(Eigen::VectorXd(S * v));
+    const Vector6 ref = J * theta - v;
+    EXPECT_LE((r - ref).norm(), 1e-9 * v.norm()) << trial;
+  }
+}
+
+TEST(FilterProjector, NonFiniteJacobianOnAZeroWeightRowGivesNaN) {
+  // the rows a weight excludes are still J's: a NaN there is a bad input, reported as NaN
+  // (not hidden by the weights, nor by a deferred factorisation)
+  Jacobian J(6, 3);
+  J.setRandom();
+  J(5, 1) = std::nan("");
+  const Vector6 w = (Vector6() << 1.0, 1.0, 1.0, 0.0, 0.0, 0.0).finished();
+  WeightedProjector p;
+  p.compute(J, w);
+  EXPECT_EQ(p.rank(), 0);
+  const Vector6 x = (Vector6() << 1.0, 2.0, 3.0, 0.0, 0.0, 0.0).finished();
+  EXPECT_TRUE(p.range(x).array().isNaN().all());
+  JointVector theta_dot;
+  p.fit(x, theta_dot);
+  EXPECT_TRUE(theta_dot.array().isNaN().all());
+  EXPECT_TRUE(p.residual(x).array().isNaN().all());
 }
 
 TEST(FilterProjector, FitIsTheWeightedMinimumNormSolution) {

@@ -2,6 +2,7 @@
 // (src/flush_denormals.hpp), the caller's mode as it was afterwards.
 #include <gtest/gtest.h>
 
+#include <cfenv>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -20,6 +21,7 @@ bool flushing() noexcept {
 }
 
 int g_calls = 0, g_flushed = 0;
+bool g_divide = false;
 
 // A Probe whose pose and Jacobian record the floating-point mode they run in (it has no
 // closed-form placement, so the cycle's Gauss-Newton calls them)
@@ -34,6 +36,11 @@ class ModeProbe final : public Mechanism {
     probe_->forward_jacobian(x, T, J);
     ++g_calls;
     g_flushed += flushing() ? 1 : 0;
+    if (g_divide) {  // raises the divide-by-zero flag
+      volatile double zero = 0.0;
+      volatile double inf = 1.0 / zero;
+      (void)inf;
+    }
   }
 
  private:
@@ -78,6 +85,15 @@ TEST(FloatingPoint, TheCycleFlushesSubnormalsAndRestoresTheCallersMode) {
   EXPECT_FALSE(flushing()) << "render restores the caller's mode";
   each_way("set", [&] { set.step(q.data(), dq.data(), set_out); });
   EXPECT_FALSE(flushing()) << "a set's step restores the caller's mode";
+
+  // the exception flags raised inside the cycle stay raised for the caller (only the two
+  // mode bits are restored)
+  std::feclearexcept(FE_ALL_EXCEPT);
+  g_divide = true;
+  controller.step(q.data(), dq.data(), out);
+  g_divide = false;
+  EXPECT_TRUE(std::fetestexcept(FE_DIVBYZERO));
+  std::feclearexcept(FE_ALL_EXCEPT);
 
   {  // a caller that flushes already keeps flushing
     const detail::FlushDenormals caller;
