@@ -1,4 +1,5 @@
 #include "closed_form.hpp"
+#include "newton_stop.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -120,7 +121,7 @@ Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
       // saves the step after, which would only move x by rounding noise.
       const double a = std::abs(step);
       if (a <= rounding ||
-          (next > lo && next < hi && a * a * a <= rounding * last_step * last_step)) {
+          (next > lo && next < hi && next_newton_step_below(a, last_step, rounding))) {
         return advanced(at, -step);
       }
       if (next > lo && next < hi) {
@@ -351,9 +352,8 @@ Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& va
       u = (cn * u + sn_n * (E * step)).normalized();
       stale = true;
       if (n <= 1e-15) break;
-      // Newton's error falls as e' = K e^2, K ~ n / last^2 from the last two steps: where
-      // the next step would be ~ n^3 / last^2 <= 1e-15, it is not taken
-      if (last > 0.0 && n * n * n <= 1e-15 * last * last) break;
+      // the next step at rounding level is not taken
+      if (next_newton_step_below(n, last, 1e-15)) break;
       last = n;
       continue;
     }
@@ -758,11 +758,10 @@ bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
     u = u_new;
     // converged: a full Newton step that moved the tip and the stylus by rounding noise (the
     // next would be its square); or, after two full Newton steps, one whose successor would
-    // (Newton's error falls as e' = K e^2, K ~ a / last^2: the next step ~ a^3 / last^2)
     const bool full = newton && scale == 1.0;
     const double a = std::max(moved / L, n);
     if (full && a <= 1e-12) return true;
-    if (full && last > 0.0 && a * a * a <= 1e-12 * last * last) return true;
+    if (full && next_newton_step_below(a, last, 1e-12)) return true;
     last = full ? a : 0.0;
   }
   return false;

@@ -28,7 +28,8 @@ class FlushDenormals {
   ~FlushDenormals() { _mm_setcsr((_mm_getcsr() & ~kFtzDaz) | (saved_ & kFtzDaz)); }
 
  private:
-  static constexpr unsigned kFtzDaz = 0x8040u;  // flush-to-zero (bit 15), denormals-are-zero (bit 6)
+  // flush-to-zero (bit 15), denormals-are-zero (bit 6)
+  static constexpr unsigned kFtzDaz = 0x8040u;
   unsigned saved_;
 #elif defined(VIRTMECH_FLUSH_DENORMALS_AARCH64)
   FlushDenormals() noexcept {

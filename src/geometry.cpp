@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "newton_stop.hpp"
 #include "virtmech/validate.hpp"
 
 namespace virtmech {
@@ -282,9 +283,8 @@ double refine(Eigen::Matrix<double, N, 1>& x, const Eigen::Matrix<double, N, 1>&
     g = gn;
     H = Hn;
     if (a <= 1e-15) break;
-    // Newton's error falls as e' = K e^2: after two full Newton steps K ~ a / last^2, and
-    // the next step would be ~ a^3 / last^2; at rounding level it is not taken
-    if (newton && last > 0.0 && a * a * a <= 1e-15 * last * last) break;
+    // after two full Newton steps, a next one at rounding level is not taken
+    if (newton && detail::next_newton_step_below(a, last, 1e-15)) break;
     last = newton ? a : 0.0;
   }
   return f;

@@ -246,8 +246,8 @@ void wrist_at_tip(const Eigen::Matrix3d& B, const Eigen::Vector3d& tip, double l
   Eigen::Matrix3d R_tip;
   R_tip << R.col(0), -R.col(1), -R.col(2);
   double ca, sa;
-  theta.segment<3>(wrist) =
-      euler_xyz_nearest(B.transpose() * R_tip, Eigen::Vector3d(start[0], start[1], start[2]), ca, sa);
+  theta.segment<3>(wrist) = euler_xyz_nearest(
+      B.transpose() * R_tip, Eigen::Vector3d(start[0], start[1], start[2]), ca, sa);
   const Eigen::Vector3d arm = -length * R.col(2);  // tip to handle
   T.linear() = R;
   T.translation() = tip + arm;
