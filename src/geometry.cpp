@@ -592,18 +592,52 @@ NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::
   const int mu = interior_multiplicity(knots_u_, nu_, p_);
   const int mv = interior_multiplicity(knots_v_, nv_, q_);
   kinked_ = (mu > 0 && mu > p_ - 2) || (mv > 0 && mv > q_ - 2);
+  creased_ = (mu > 0 && mu >= p_) || (mv > 0 && mv >= q_);
   sample_u_ = sample_parameters(knots_u_, nu_, p_, samples_per_span(p_));
   sample_v_ = sample_parameters(knots_v_, nv_, q_, samples_per_span(q_));
   sample_p_.reserve(sample_u_.size() * sample_v_.size());
   sample_su_.reserve(sample_p_.capacity());
   sample_sv_.reserve(sample_p_.capacity());
+  sample_su_left_.reserve(sample_p_.capacity());
+  sample_sv_below_.reserve(sample_p_.capacity());
   SurfaceDerivatives d;
-  for (double u : sample_u_) {
-    for (double v : sample_v_) {
-      derivatives(u, v, 1, d);
+  for (size_t i = 0; i < sample_u_.size(); ++i) {
+    const double u = sample_u_[i];
+    const int su = find_span(knots_u_.data(), nu_, p_, u);
+    // the span to the left of u (a sample is a knot or between two)
+    const int su_left =
+        i == 0 ? su : find_span(knots_u_.data(), nu_, p_, 0.5 * (sample_u_[i - 1] + u));
+    for (size_t j = 0; j < sample_v_.size(); ++j) {
+      const double v = sample_v_[j];
+      const int sv = find_span(knots_v_.data(), nv_, q_, v);
+      const int sv_below =
+          j == 0 ? sv : find_span(knots_v_.data(), nv_, q_, 0.5 * (sample_v_[j - 1] + v));
+      derivatives_in_spans(u, v, su, sv, 1, d);
       sample_p_.push_back(d(0, 0));
       sample_su_.push_back(d(1, 0));
       sample_sv_.push_back(d(0, 1));
+      derivatives_in_spans(u, v, su_left, sv, 1, d);
+      sample_su_left_.push_back(d(1, 0));
+      derivatives_in_spans(u, v, su, sv_below, 1, d);
+      sample_sv_below_.push_back(d(0, 1));
+    }
+  }
+  // each cell's bounding sphere, as the curve's intervals': about its middle point, the
+  // largest distance over 9 x 9 points of it, enlarged by half
+  const size_t su = sample_u_.size(), sv = sample_v_.size();
+  cell_center_.reserve((su - 1) * (sv - 1));
+  cell_radius_.reserve((su - 1) * (sv - 1));
+  for (size_t i = 0; i + 1 < su; ++i) {
+    for (size_t j = 0; j + 1 < sv; ++j) {
+      const double u0 = sample_u_[i], u1 = sample_u_[i + 1];
+      const double v0 = sample_v_[j], v1 = sample_v_[j + 1];
+      const Eigen::Vector3d c = evaluate(0.5 * (u0 + u1), 0.5 * (v0 + v1));
+      double r = 0.0;
+      for (int a = 0; a <= 8; ++a)
+        for (int b = 0; b <= 8; ++b)
+          r = std::max(r, (evaluate(u0 + a * (u1 - u0) / 8.0, v0 + b * (v1 - v0) / 8.0) - c).norm());
+      cell_center_.push_back(c);
+      cell_radius_.push_back(1.5 * r);
     }
   }
 }
@@ -629,11 +663,15 @@ Eigen::Vector3d NurbsSurface::evaluate(double u, double v) const noexcept {
 
 void NurbsSurface::derivatives(double u, double v, int order,
                                SurfaceDerivatives& out) const noexcept {
-  const int nd = clamp_order(order);
   u = clamp(u, lower_[0], upper_[0]);
   v = clamp(v, lower_[1], upper_[1]);
-  const int su = find_span(knots_u_.data(), nu_, p_, u);
-  const int sv = find_span(knots_v_.data(), nv_, q_, v);
+  derivatives_in_spans(u, v, find_span(knots_u_.data(), nu_, p_, u),
+                       find_span(knots_v_.data(), nv_, q_, v), order, out);
+}
+
+void NurbsSurface::derivatives_in_spans(double u, double v, int su, int sv, int order,
+                                        SurfaceDerivatives& out) const noexcept {
+  const int nd = clamp_order(order);
   double Nu[kD][kP], Nv[kD][kP];
   basis_derivatives(knots_u_.data(), su, p_, u, nd, Nu);
   basis_derivatives(knots_v_.data(), sv, q_, v, nd, Nv);
@@ -674,58 +712,84 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
   auto d2 = [&](int i, int j) {
     return (sample_p_[static_cast<size_t>(i) * mv + j] - p).squaredNorm();
   };
-  auto gu = [&](int i, int j) {
+  // the gradient's parts at sample (i, j): from the right in u / from above in v, or (a
+  // cell's far corner, an edge interval's end) from the left / from below
+  auto gu = [&](int i, int j, bool left = false) {
     const size_t k = static_cast<size_t>(i) * mv + j;
-    return sample_su_[k].dot(sample_p_[k] - p);
+    return (left ? sample_su_left_ : sample_su_)[k].dot(sample_p_[k] - p);
   };
-  auto gv = [&](int i, int j) {
+  auto gv = [&](int i, int j, bool below = false) {
     const size_t k = static_cast<size_t>(i) * mv + j;
-    return sample_sv_[k].dot(sample_p_[k] - p);
+    return (below ? sample_sv_below_ : sample_sv_)[k].dot(sample_p_[k] - p);
   };
-  // Candidates (index i * mv + j, the start): (1) samples that are discrete local minima of
-  // the distance; (2) cells whose corners' gradients change sign in u and in v (a minimum
-  // inside), started at the nearest corner; (3) along the four edges, sample intervals
-  // whose tangential gradient changes sign (a minimum on or near the edge).
+  // the distance from p of cell (i, j) at least (where that is > 0)
+  auto cell_bound = [&](int i, int j) {
+    const size_t cell = static_cast<size_t>(i) * (mv - 1) + j;
+    return (cell_center_[cell] - p).norm() - cell_radius_[cell];
+  };
+  // the distance from p of the cells about sample (i, j) at least: a start's minimum lies
+  // in one of them
+  auto cells_bound = [&](int i, int j) {
+    double lb = kInf;
+    for (int a = std::max(i - 1, 0); a <= std::min(i, mu - 2); ++a)
+      for (int b = std::max(j - 1, 0); b <= std::min(j, mv - 2); ++b)
+        lb = std::min(lb, cell_bound(a, b));
+    return lb;
+  };
+  // The nearest sample bounds the least distance from above (the refinement from it, the
+  // first, descends), so a cell farther than it holds no minimum that counts: only the
+  // cells within it are searched.
+  double near2 = kInf;
+  for (const Eigen::Vector3d& s : sample_p_) near2 = std::min(near2, (s - p).squaredNorm());
+  // Candidates (index i * mv + j, the start), in those cells: (1) samples that are discrete
+  // local minima of the distance; (2) cells whose corners' gradients change sign in u and
+  // in v (a minimum inside), started at the nearest corner; (3) along the four edges,
+  // sample intervals whose tangential gradient changes sign (a minimum on or near the edge).
   Best<kCandidates> best;
-  for (int i = 0; i < mu; ++i) {
-    for (int j = 0; j < mv; ++j) {
-      const double dij = d2(i, j);
-      bool local_min = true;
-      for (int a = std::max(i - 1, 0); a <= std::min(i + 1, mu - 1) && local_min; ++a)
-        for (int b = std::max(j - 1, 0); b <= std::min(j + 1, mv - 1); ++b)
-          if ((a != i || b != j) && d2(a, b) < dij) {
-            local_min = false;
-            break;
-          }
-      if (local_min) best.add(i * mv + j, dij);
-      if (i + 1 < mu && j + 1 < mv) {
-        double umin = kInf, umax = -kInf, vmin = kInf, vmax = -kInf, dmin = kInf;
-        int start = 0;
-        for (int a = i; a <= i + 1; ++a) {
-          for (int b = j; b <= j + 1; ++b) {
-            const double x = gu(a, b), y = gv(a, b), dd = d2(a, b);
-            umin = std::min(umin, x), umax = std::max(umax, x);
-            vmin = std::min(vmin, y), vmax = std::max(vmax, y);
-            if (dd < dmin) dmin = dd, start = a * mv + b;
-          }
-        }
-        if (umin <= 0.0 && umax >= 0.0 && vmin <= 0.0 && vmax >= 0.0) best.add(start, dmin);
-      }
+  auto local_min = [&](int i, int j) {
+    const double dij = d2(i, j);
+    for (int a = std::max(i - 1, 0); a <= std::min(i + 1, mu - 1); ++a)
+      for (int b = std::max(j - 1, 0); b <= std::min(j + 1, mv - 1); ++b)
+        if ((a != i || b != j) && d2(a, b) < dij) return;
+    best.add(i * mv + j, dij);
+  };
+  auto edge_v = [&](int i, int j) {  // the interval (i, j)-(i, j + 1) of an edge u = const
+    if (gv(i, j) <= 0.0 && gv(i, j + 1, true) >= 0.0) {
+      const bool first = d2(i, j) <= d2(i, j + 1);
+      best.add(i * mv + (first ? j : j + 1), std::min(d2(i, j), d2(i, j + 1)));
     }
-  }
-  for (int e = 0; e < 2; ++e) {
-    const int i = e == 0 ? 0 : mu - 1;
-    for (int j = 0; j + 1 < mv; ++j)
-      if (gv(i, j) <= 0.0 && gv(i, j + 1) >= 0.0) {
-        const bool first = d2(i, j) <= d2(i, j + 1);
-        best.add(i * mv + (first ? j : j + 1), std::min(d2(i, j), d2(i, j + 1)));
+  };
+  auto edge_u = [&](int i, int j) {  // the interval (i, j)-(i + 1, j) of an edge v = const
+    if (gu(i, j) <= 0.0 && gu(i + 1, j, true) >= 0.0) {
+      const bool first = d2(i, j) <= d2(i + 1, j);
+      best.add((first ? i : i + 1) * mv + j, std::min(d2(i, j), d2(i + 1, j)));
+    }
+  };
+  for (int i = 0; i + 1 < mu; ++i) {
+    for (int j = 0; j + 1 < mv; ++j) {
+      const double lb = cell_bound(i, j);
+      if (lb > 0.0 && lb * lb > near2) continue;
+      for (int a = i; a <= i + 1; ++a)
+        for (int b = j; b <= j + 1; ++b) local_min(a, b);
+      double umin = kInf, umax = -kInf, vmin = kInf, vmax = -kInf, dmin = kInf;
+      int start = 0;
+      for (int a = i; a <= i + 1; ++a) {
+        for (int b = j; b <= j + 1; ++b) {
+          const double x = gu(a, b, a > i), y = gv(a, b, b > j), dd = d2(a, b);
+          umin = std::min(umin, x), umax = std::max(umax, x);
+          vmin = std::min(vmin, y), vmax = std::max(vmax, y);
+          if (dd < dmin) dmin = dd, start = a * mv + b;
+        }
       }
-    const int j = e == 0 ? 0 : mv - 1;
-    for (int a = 0; a + 1 < mu; ++a)
-      if (gu(a, j) <= 0.0 && gu(a + 1, j) >= 0.0) {
-        const bool first = d2(a, j) <= d2(a + 1, j);
-        best.add((first ? a : a + 1) * mv + j, std::min(d2(a, j), d2(a + 1, j)));
-      }
+      // on a creased surface from inside the cell (a corner on a crease may descend to
+      // the other side's minimum): index samples + cell
+      if (umin <= 0.0 && umax >= 0.0 && vmin <= 0.0 && vmax >= 0.0)
+        best.add(creased_ ? mu * mv + i * (mv - 1) + j : start, dmin);
+      if (i == 0) edge_v(0, j);
+      if (i + 2 == mu) edge_v(mu - 1, j);
+      if (j == 0) edge_u(i, 0);
+      if (j + 2 == mv) edge_u(i, mv - 1);
+    }
   }
   auto eval = [&](const Eigen::Vector2d& x, Eigen::Vector2d& g, Eigen::Matrix2d& H) {
     SurfaceDerivatives d;
@@ -741,7 +805,24 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
   Eigen::Vector2d best_x = lower_;
   for (int c = 0; c < best.count; ++c) {
     const int k = best.index[c];
-    Eigen::Vector2d x(sample_u_[static_cast<size_t>(k / mv)], sample_v_[static_cast<size_t>(k % mv)]);
+    const bool in_cell = k >= mu * mv;
+    const int i = in_cell ? (k - mu * mv) / (mv - 1) : k / mv;
+    const int j = in_cell ? (k - mu * mv) % (mv - 1) : k % mv;
+    if (best_f < kInf) {
+      const double lb = in_cell ? cell_bound(i, j) : cells_bound(i, j);
+      if (lb > 0.0 && 0.5 * lb * lb >= best_f) continue;
+    }
+    Eigen::Vector2d x(sample_u_[static_cast<size_t>(i)], sample_v_[static_cast<size_t>(j)]);
+    if (in_cell) {  // a quarter of the way in from its nearest corner
+      const Eigen::Vector2d far(sample_u_[static_cast<size_t>(i) + 1],
+                                sample_v_[static_cast<size_t>(j) + 1]);
+      const Eigen::Vector2d mid = 0.5 * (x + far);
+      int a = 0, b = 0;
+      for (int s = 0; s < 4; ++s)
+        if (d2(i + s / 2, j + s % 2) < d2(i + a, j + b)) a = s / 2, b = s % 2;
+      const Eigen::Vector2d corner(a ? far[0] : x[0], b ? far[1] : x[1]);
+      x = 0.5 * (corner + mid);
+    }
     const double f = refine<2>(x, lower_, upper_, eval);
     if (f < best_f) {
       best_f = f;

@@ -162,6 +162,10 @@ class NurbsSurface final : public Surface {
   const Eigen::VectorXd& knots_v() const noexcept { return knots_v_; }
 
  private:
+  // derivatives with the basis functions of knot spans su, sv (one-sided limits at knots)
+  void derivatives_in_spans(double u, double v, int su, int sv, int order,
+                            SurfaceDerivatives& d) const noexcept;
+
   int nu_ = 0, nv_ = 0, p_ = 1, q_ = 1;
   Eigen::Matrix4Xd pw_;  // column i * nv + j
   Eigen::VectorXd knots_u_, knots_v_;
@@ -169,7 +173,15 @@ class NurbsSurface final : public Surface {
   std::vector<double> sample_u_, sample_v_;
   // index i * sample_v_.size() + j: the point and its first derivatives S_u, S_v
   std::vector<Eigen::Vector3d> sample_p_, sample_su_, sample_sv_;
+  // the same S_u from the left in u and S_v from below in v (they differ from the above
+  // across a crease: a cell's corners take their derivatives from inside it)
+  std::vector<Eigen::Vector3d> sample_su_left_, sample_sv_below_;
+  // a sphere holding the surface over sample cell i * (sample_v_.size() - 1) + j
+  // (closest_point skips a start whose cells are all farther than a minimum it has found)
+  std::vector<Eigen::Vector3d> cell_center_;
+  std::vector<double> cell_radius_;
   bool kinked_ = false;  // an interior knot across which the surface is not C^2
+  bool creased_ = false;  // ... nor C^1
 };
 
 /// Sphere S(u, v) = c + r (cos u cos v e1 + sin u cos v e2 + sin v a): u the longitude in

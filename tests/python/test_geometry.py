@@ -40,6 +40,25 @@ def random_surface(rng: np.random.Generator, p: int, q: int):
     return P, w, random_knots(rng, nu, p), random_knots(rng, nv, q)
 
 
+def trial_surface(rng: np.random.Generator, trial: int):
+    """A random surface for trial `trial` of a search test: bilinear (creased at every
+    interior knot) for trials 0 and 1, else of random degrees 1-4; every odd trial with a
+    spike (a control point lifted by 1 with a weight of 50)."""
+    p, q = (1, 1) if trial < 2 else tuple(int(k) for k in rng.integers(1, 5, 2))
+    P, w, Uu, Uv = random_surface(rng, p, q)
+    if trial % 2:
+        i, j = rng.integers(0, w.shape[0]), rng.integers(0, w.shape[1])
+        w[i, j] = 50.0
+        P[i, j, 2] += 1.0
+    return vm.NurbsSurface(P, w, Uu, Uv, p, q)
+
+
+def surface_grid(s, n: int = 151) -> np.ndarray:
+    """The points of s on an n x n grid of the unit parameter square, (n * n, 3)."""
+    g = np.linspace(0, 1, n)
+    return np.array([[s.evaluate(u, v) for v in g] for u in g]).reshape(-1, 3)
+
+
 def geomdl_curve(P, w, U, p):
     c = geomdl_nurbs.Curve()
     c.degree = p
@@ -339,16 +358,9 @@ def test_surface_and_shape_bad_inputs():
 def test_closest_point_never_worse_than_a_dense_grid():
     """Creases (degree 1, knots of full multiplicity), dips and spikes (a weight of 50)."""
     rng = np.random.default_rng(1)
-    g = np.linspace(0, 1, 151)
     for trial in range(6):
-        p, q = (1, 1) if trial < 2 else tuple(int(k) for k in rng.integers(1, 5, 2))
-        P, w, Uu, Uv = random_surface(rng, p, q)
-        if trial % 2:
-            i, j = rng.integers(0, w.shape[0]), rng.integers(0, w.shape[1])
-            w[i, j] = 50.0
-            P[i, j, 2] += 1.0
-        s = vm.NurbsSurface(P, w, Uu, Uv, p, q)
-        pts = np.array([[s.evaluate(u, v) for v in g] for u in g]).reshape(-1, 3)
+        s = trial_surface(rng, trial)
+        pts = surface_grid(s)
         for _ in range(10):
             x = np.array([*rng.uniform(-0.5, 1.5, 2), rng.uniform(-1, 1.5)])
             _, point = s.closest_point(x)
@@ -392,6 +404,44 @@ def test_closest_points_in_one_call_are_closest_point_row_by_row():
         curve.closest_points(np.zeros((4, 2)))
     with pytest.raises(ValueError, match=r"X: expected an array of shape \(n, 3\)"):
         surfaces[1].closest_points(np.zeros(3))
+
+
+def test_surface_closest_points_never_worse_than_a_dense_grid_over_many_points():
+    # the search looks only in the sample cells whose bounding sphere is nearer than the
+    # nearest sample, and skips a start whose cells are all farther than the best found:
+    # over points near the surface (where most cells are ruled out) and far from it, on
+    # spiky surfaces (a weight of 50) and creased ones (degree 1, a knot of multiplicity
+    # >= the degree: there a cell's corners take the derivatives from inside it, and a
+    # start is inside), never a worse answer for it
+    rng = np.random.default_rng(8)
+    for trial in range(14):
+        s = trial_surface(rng, trial)
+        dense = surface_grid(s)
+        on = [(rng.uniform(0, 1), rng.uniform(0, 1)) for _ in range(40)]
+        near = np.array([s.evaluate(u, v) + rng.uniform(-0.05, 0.05) * s.normal(u, v)
+                         for u, v in on])
+        X = np.concatenate([near, rng.uniform(-0.5, 1.5, (20, 3))])
+        _, points, _ = s.closest_points(X)
+        d = np.linalg.norm(points - X, axis=1)
+        ref = np.min(np.linalg.norm(dense[None] - X[:, None], axis=2), axis=1)
+        assert np.all(d <= ref + 1e-12), trial
+
+
+def test_surface_closest_point_beside_a_crease_takes_the_nearer_face():
+    # a V-shaped valley of two planes meeting at u = 0.5 (degree 1, an interior knot), a
+    # point just left of its bottom: the nearest sample is on the crease, and a start there
+    # (derivatives from the right) descends to the right face; the left face is nearer
+    P = np.array([[[0, 0, 0.3], [0, 1, 0.3]], [[0.5, 0, 0], [0.5, 1, 0]],
+                  [[1, 0, 0.3], [1, 1, 0.3]]])
+    s = vm.NurbsSurface(P, np.ones((3, 2)), [0, 0, 0.5, 1, 1], [0, 0, 1, 1], 1, 1)
+    x = np.array([0.49, 0.4, 0.05])
+    uv, point = s.closest_point(x)
+    # the left face z = 0.6 (0.5 - x): the distance and foot from the plane's normal
+    n = np.array([0.6, 0.0, 1.0]) / np.sqrt(1.36)
+    height = (x[2] - 0.6 * (0.5 - x[0])) / np.sqrt(1.36)
+    np.testing.assert_allclose(np.linalg.norm(point - x), height, rtol=1e-12)
+    np.testing.assert_allclose(point, x - height * n, atol=1e-12)
+    np.testing.assert_allclose(uv, [point[0], 0.4], atol=1e-12)
 
 
 def test_curve_closest_points_never_worse_than_a_dense_grid_over_many_points():
