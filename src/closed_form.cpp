@@ -666,24 +666,46 @@ Eigen::Vector3d stylus_direction(const TipSet& set, const Eigen::Vector3d& p_R, 
   return lowest_descent(f, starts, count, starts[0]);
 }
 
-bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
-                         const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
-                         double& s, Eigen::Vector3d& u) noexcept {
+namespace {
+
+// Newton's method for a probe's stylus whose tip is held to a shape of N parameters (a
+// curve, N = 1, or a surface, N = 2): x the parameters in [lo, hi], u the tip-to-handle
+// direction on S^2, minimising w_p |P(x) + L u - p_R|^2 + w_r angle(u, u_R)^2.
+// `shape(x, order, P, D1, D2)`: the point, its first derivatives (columns) and, for order
+// 2, its second (column i * N + j the derivative in x_i and x_j).
+template <int N, typename Shape>
+bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
+                   const Eigen::Matrix<double, N, 1>& hi, const Eigen::Vector3d& p_R,
+                   const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+                   Eigen::Matrix<double, N, 1>& x, Eigen::Vector3d& u) noexcept {
+  constexpr int M = N + 2;
+  using VecN = Eigen::Matrix<double, N, 1>;
+  using VecM = Eigen::Matrix<double, M, 1>;
+  using MatM = Eigen::Matrix<double, M, M>;
+  using D1 = Eigen::Matrix<double, 3, N>;
+  using D2 = Eigen::Matrix<double, 3, N * N>;
   const double L = length;
-  const double lo = curve.lower(), hi = curve.upper();
-  if (!(s >= lo && s <= hi) || !(w_p > 0.0)) return false;
+  const auto inside = [&](const VecN& y) {
+    return (y.array() >= lo.array()).all() && (y.array() <= hi.array()).all();
+  };
+  if (!inside(x) || !(w_p > 0.0)) return false;
   u.normalize();
   double last = 0.0;  // the last full Newton step (scaled), 0 if the last was not one
-  const auto cost = [&](double s_, const Eigen::Vector3d& u_) {
-    const Eigen::Vector3d r = curve.evaluate(s_) + L * u_ - p_R;
+  const auto cost = [&](const VecN& y, const Eigen::Vector3d& u_) {
+    Eigen::Vector3d P;
+    D1 d1;
+    D2 d2;
+    shape(y, 0, P, d1, d2);
+    const Eigen::Vector3d r = P + L * u_ - p_R;
     const double ang = std::atan2(u_.cross(u_R).norm(), u_.dot(u_R));
     return w_p * r.squaredNorm() + w_r * ang * ang;
   };
   for (int it = 0; it < 12; ++it) {
-    CurveDerivatives d;
-    curve.derivatives(s, 2, d);
-    const Eigen::Vector3d C1 = d.col(1), C2 = d.col(2);
-    const Eigen::Vector3d r = d.col(0) + L * u - p_R;  // the handle's position error
+    Eigen::Vector3d P;
+    D1 d1;
+    D2 d2;
+    shape(x, 2, P, d1, d2);
+    const Eigen::Vector3d r = P + L * u - p_R;  // the handle's position error
     double ang, h, dh;
     acos_squared_terms(u.dot(u_R), u.cross(u_R).norm(), ang, h, dh);
     // the gradient and Hessian in u as a function on R^3, then on the sphere
@@ -691,70 +713,78 @@ bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
     Eigen::Matrix<double, 3, 2> E;
     E.col(0) = any_orthogonal(u);
     E.col(1) = u.cross(E.col(0));
-    Eigen::Vector3d g;
-    g << 2.0 * w_p * r.dot(C1), E.transpose() * g_u;
-    Eigen::Matrix3d H;
-    H(0, 0) = 2.0 * w_p * (C1.squaredNorm() + r.dot(C2));
-    const Eigen::Vector2d H_su = 2.0 * w_p * L * (E.transpose() * C1);
-    H(0, 1) = H(1, 0) = H_su[0];
-    H(0, 2) = H(2, 0) = H_su[1];
+    VecM g;
+    g.template head<N>() = 2.0 * w_p * (d1.transpose() * r);
+    g.template tail<2>() = E.transpose() * g_u;
+    MatM H;
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j)
+        H(i, j) = 2.0 * w_p * (d1.col(i).dot(d1.col(j)) + d2.col(i * N + j).dot(r));
+    const Eigen::Matrix<double, 2, N> H_ux = 2.0 * w_p * L * (E.transpose() * d1);
+    H.template bottomLeftCorner<2, N>() = H_ux;
+    H.template topRightCorner<N, 2>() = H_ux.transpose();
     const Eigen::Vector2d Ru = E.transpose() * u_R;
     Eigen::Matrix2d H_uu = (2.0 * w_p * L * L - u.dot(g_u)) * Eigen::Matrix2d::Identity();
     H_uu -= 2.0 * w_r * dh * Ru * Ru.transpose();
-    H.bottomRightCorner<2, 2>() = H_uu;
+    H.template bottomRightCorner<2, 2>() = H_uu;
     // Newton's step where H is positive definite; else the saddle-free step (each
     // eigendirection's Newton step with |lambda|: descending along negative curvature, as
-    // where the stylus stands square to the curve and the position cost is flat to second
+    // where the stylus stands square to the shape and the position cost is flat to second
     // order along it), with a backtracking line search on the cost
-    Eigen::Vector3d step;
-    const Eigen::LLT<Eigen::Matrix3d> llt(H);
+    VecM step;
+    const Eigen::LLT<MatM> llt(H);
     const bool newton = llt.info() == Eigen::Success;
     if (newton) {
       step = -llt.solve(g);
     } else {
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-      eig.computeDirect(H);
-      const Eigen::Vector3d lam = eig.eigenvalues().cwiseAbs();
+      Eigen::SelfAdjointEigenSolver<MatM> eig;
+      if constexpr (M == 3) {
+        eig.computeDirect(H);
+      } else {
+        eig.compute(H);
+      }
+      const VecM lam = eig.eigenvalues().cwiseAbs();
       const double floor = 1e-9 * std::max(lam.maxCoeff(), w_p * L * L);
-      const Eigen::Vector3d gv = eig.eigenvectors().transpose() * g;
+      const VecM gv = eig.eigenvectors().transpose() * g;
       step = -eig.eigenvectors() * gv.cwiseQuotient(lam.cwiseMax(floor));
     }
     if (!step.allFinite()) return false;
-    // at most a tenth of the stylus along the curve and 0.2 rad of turn at a time
-    const double speed = C1.norm();
+    // at most a tenth of the stylus of tip motion and 0.2 rad of turn at a time
+    const double tip_move = (d1 * step.template head<N>()).norm();
     double scale = 1.0;
-    if (std::abs(step[0]) * speed > 0.1 * L) scale = 0.1 * L / (std::abs(step[0]) * speed);
-    if (step.tail<2>().norm() * scale > 0.2) scale = 0.2 / step.tail<2>().norm();
+    if (tip_move > 0.1 * L) scale = 0.1 * L / tip_move;
+    if (step.template tail<2>().norm() * scale > 0.2) scale = 0.2 / step.template tail<2>().norm();
     step *= scale;
-    const auto moved_to = [&](double t, double& s_t, Eigen::Vector3d& u_t) {
-      s_t = s + t * step[0];
-      const double n = t * step.tail<2>().norm();
+    const auto moved_to = [&](double t, VecN& x_t, Eigen::Vector3d& u_t) {
+      x_t = x + t * step.template head<N>();
+      const double n = t * step.template tail<2>().norm();
       // cos n and sin(n) / n; below 1e-3 by their Taylor polynomials (next terms n^6 / 720
       // and n^6 / 5040 relative, below 1e-20), as on the sphere
       const double n2 = n * n;
       const double cn = n < 1e-3 ? 1.0 - n2 * (0.5 - n2 * (1.0 / 24.0)) : std::cos(n);
       const double sn_n = n < 1e-3 ? 1.0 - n2 * (1.0 / 6.0 - n2 * (1.0 / 120.0)) : std::sin(n) / n;
-      u_t = n > 0.0 ? Eigen::Vector3d((cn * u + sn_n * t * (E * step.tail<2>())).normalized())
-                    : u;
+      u_t = n > 0.0
+                ? Eigen::Vector3d((cn * u + sn_n * t * (E * step.template tail<2>())).normalized())
+                : u;
     };
-    double s_new;
+    VecN x_new;
     Eigen::Vector3d u_new;
     if (newton && scale == 1.0) {
-      moved_to(1.0, s_new, u_new);
+      moved_to(1.0, x_new, u_new);
     } else {
       const double f0 = w_p * r.squaredNorm() + w_r * ang * ang;
       const double slope = g.dot(step);  // < 0: a descent direction
       double t = 1.0;
       bool accepted = false;
       for (int k = 0; k < 30 && !accepted; ++k, t *= 0.5) {
-        moved_to(t, s_new, u_new);
-        accepted = s_new >= lo && s_new <= hi && cost(s_new, u_new) <= f0 + 1e-4 * t * slope;
+        moved_to(t, x_new, u_new);
+        accepted = inside(x_new) && cost(x_new, u_new) <= f0 + 1e-4 * t * slope;
       }
       if (!accepted) return false;
     }
-    if (!(s_new >= lo && s_new <= hi)) return false;  // at a stop: Gauss-Newton's active set
-    const double moved = std::abs(s_new - s) * speed, n = (u_new - u).norm();
-    s = s_new;
+    if (!inside(x_new)) return false;  // at a stop: Gauss-Newton's active set
+    const double moved = (d1 * (x_new - x)).norm(), n = (u_new - u).norm();
+    x = x_new;
     u = u_new;
     // converged: a full Newton step that moved the tip and the stylus by rounding noise (the
     // next would be its square); or, after two full Newton steps, one whose successor would
@@ -765,6 +795,42 @@ bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
     last = full ? a : 0.0;
   }
   return false;
+}
+
+}  // namespace
+
+bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
+                         const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+                         double& s, Eigen::Vector3d& u) noexcept {
+  using V1 = Eigen::Matrix<double, 1, 1>;
+  const auto shape = [&](const V1& x, int order, Eigen::Vector3d& P,
+                         Eigen::Matrix<double, 3, 1>& d1, Eigen::Matrix<double, 3, 1>& d2) {
+    CurveDerivatives d;
+    curve.derivatives(x[0], order, d);
+    P = d.col(0);
+    if (order >= 1) d1 = d.col(1);
+    if (order >= 2) d2 = d.col(2);
+  };
+  V1 x = V1::Constant(s);
+  const bool ok = stylus_newton<1>(shape, V1::Constant(curve.lower()),
+                                   V1::Constant(curve.upper()), p_R, u_R, length, w_p, w_r, x, u);
+  s = x[0];
+  return ok;
+}
+
+bool surface_stylus_newton(const Surface& surface, const Eigen::Vector3d& p_R,
+                           const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+                           const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
+                           Eigen::Vector2d& uv, Eigen::Vector3d& u) noexcept {
+  const auto shape = [&](const Eigen::Vector2d& x, int order, Eigen::Vector3d& P,
+                         Eigen::Matrix<double, 3, 2>& d1, Eigen::Matrix<double, 3, 4>& d2) {
+    SurfaceDerivatives d;
+    surface.derivatives(x[0], x[1], order, d);
+    P = d(0, 0);
+    if (order >= 1) d1 << d(1, 0), d(0, 1);
+    if (order >= 2) d2 << d(2, 0), d(1, 1), d(1, 1), d(0, 2);
+  };
+  return stylus_newton<2>(shape, lo, hi, p_R, u_R, length, w_p, w_r, uv, u);
 }
 
 namespace {

@@ -159,6 +159,17 @@ bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
                          const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
                          double& s, Eigen::Vector3d& u) noexcept;
 
+/// The same for a probe whose tip is held to a surface S (a SurfaceProbe in contact): the
+/// parameters uv and the direction u at the local minimum of
+///   w_p |S(uv) + L u - p_R|^2 + w_r angle(u, u_R)^2
+/// by the same Newton's method on R^2 x S^2 (S's second derivatives included; steps capped
+/// at a tenth of the stylus of tip motion), the same declines; uv within [lo, hi] (the
+/// mechanism's joint limits: a wrapping u unbounded).
+bool surface_stylus_newton(const Surface& surface, const Eigen::Vector3d& p_R,
+                           const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+                           const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
+                           Eigen::Vector2d& uv, Eigen::Vector3d& u) noexcept;
+
 /// The angle x minimising -a cos(x - theta_p) + w_r acos(c + b cos(x - theta_o))^2 (a, b,
 /// w_r >= 0): a position term least at theta_p and a rotation angle least at theta_o, as
 /// for one revolute joint with weights isotropic per block; theta_p and theta_o are the

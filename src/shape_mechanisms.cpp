@@ -232,7 +232,8 @@ void SurfaceProbe::seed(const Pose& target, const Vector6& w, JointVector& theta
 bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector& start,
                          JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
-  if (!sphere_ || !detail::isotropic_blocks(w, w_p, w_r)) return false;
+  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+  if (!sphere_) return place_in_contact(target, w_p, w_r, start, theta, T, J, e);
   // The tip nearest the point q = p_R - L u below the handle is the sphere's point along q's
   // direction from the centre (or q itself, lifted, when one-sided and outside), so the
   // position cost depends on u only through its angle from v, the centre-to-handle
@@ -283,6 +284,47 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
       wrist_angles(f.B, R, Eigen::Vector3d(start.segment<3>(wrist)));
   forward_jacobian(theta.data(), T, J);
   e = pose_error(target, T);
+  return true;
+}
+
+bool SurfaceProbe::place_in_contact(const Pose& target, double w_p, double w_r,
+                                    const JointVector& start, JointVector& theta, Pose& T,
+                                    Jacobian& J, Vector6& e) const noexcept {
+  // lifted at the start: Gauss-Newton (the tip's height is a third coordinate)
+  if (unilateral_ && !(start[2] == 0.0)) return false;
+  const int wrist = unilateral_ ? 3 : 2;
+  Eigen::Vector2d uv(start[0], start[1]);
+  SurfaceDerivatives d;
+  surface_->derivatives(uv[0], uv[1], 2, d);
+  SurfaceFrame f;
+  surface_frame(*surface_, uv[0], uv[1], d, f);
+  Eigen::Vector3d u = detail::wrist_direction(f.B, start.data() + wrist);  // tip to handle
+  const Eigen::Vector2d lo(lower()[0], lower()[1]), hi(upper()[0], upper()[1]);
+  if (!detail::surface_stylus_newton(*surface_, target.translation(), -target.linear().col(2),
+                                     length_, w_p, w_r, lo, hi, uv, u)) {
+    return false;
+  }
+  surface_->derivatives(uv[0], uv[1], 2, d);
+  surface_frame(*surface_, uv[0], uv[1], d, f);
+  const Eigen::Vector3d& n = f.B.col(2);
+  // one-sided: in contact only where the cost would press the tip into the surface (its
+  // derivative in the height, 2 w_p r . n, is >= 0); else it lifts: Gauss-Newton
+  const Eigen::Vector3d r = d(0, 0) + length_ * u - target.translation();
+  if (unilateral_ && r.dot(n) < 0.0) return false;
+  Eigen::Vector3d turn;
+  const Eigen::Matrix3d R = detail::turn_stylus(target.linear(), u, turn);
+  theta.resize(dof());
+  theta[0] = uv[0];
+  theta[1] = uv[1];
+  if (unilateral_) theta[2] = 0.0;
+  J.resize(6, wrist + 3);
+  detail::wrist_at_tip(f.B, d(0, 0), length_, target, R, turn, start.data() + wrist, wrist,
+                       theta, T, J, e);
+  // sliding the tip turns the wrist's base with the surface frame (forward_jacobian's)
+  const Eigen::Vector3d arm = T.translation() - d(0, 0);
+  J.col(0) << d(1, 0) + f.w_u.cross(arm), f.w_u;
+  J.col(1) << d(0, 1) + f.w_v.cross(arm), f.w_v;
+  if (unilateral_) J.col(2) << n, 0.0, 0.0, 0.0;
   return true;
 }
 

@@ -240,13 +240,20 @@ class SurfaceProbe final : public Mechanism {
   /// weighs positions only: with the stylus exactly along the error the position-only
   /// cost is stationary but not least, and Gauss-Newton would not leave it).
   void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept override;
-  /// On a Sphere with weights isotropic per block: the weighted optimum in closed form (the
-  /// stylus turns in the plane of the handle's stylus and the centre-to-handle direction,
-  /// one angle; docs/theory.md, section 4). On every other surface false: Gauss-Newton.
+  /// With weights isotropic per block. On a Sphere: the weighted optimum in closed form
+  /// (the stylus turns in the plane of the handle's stylus and the centre-to-handle
+  /// direction, one angle; docs/theory.md, section 4). On every other surface, with the tip
+  /// in contact at the start (always where bilateral): Newton's method on the tip's surface
+  /// parameters and the stylus direction, with exact second derivatives (the roll about
+  /// the stylus drops out); false where the tip lifts, a parameter would leave its bounds
+  /// or Newton does not converge: Gauss-Newton then.
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
  private:
+  bool place_in_contact(const Pose& target, double w_p, double w_r, const JointVector& start,
+                        JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept;
+
   std::shared_ptr<const Surface> surface_;
   const Sphere* sphere_ = nullptr;  // surface_ when it is a Sphere
   double length_;

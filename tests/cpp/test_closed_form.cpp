@@ -309,3 +309,50 @@ TEST(PlaceHooks, ReturnTheChainsPoseJacobianAndError) {
     EXPECT_GT(placed, 50) << name;  // (CurveGuide's Newton declines some, from home)
   }
 }
+
+// The same for a SurfaceProbe on a NURBS patch (its Newton's method places a tip in contact
+// from a start near the optimum): targets a few millimetres off poses of the probe.
+TEST(PlaceHooks, SurfaceProbeOnANurbsPatchReturnsTheChainsPoseJacobianAndError) {
+  using namespace virtmech;
+  const double L = 0.1;
+  const std::vector<Vector6> weights = {
+      (Vector6() << 1e-6, 1e-6, 1e-6, L * L, L * L, L * L).finished(),
+      (Vector6() << 1, 1, 1, L * L, L * L, L * L).finished()};
+  std::mt19937 rng(29);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (const bool unilateral : {false, true}) {
+    const SurfaceProbe mech(vmtest::test_patch(Vector3d(0.01, -0.02, 0.03)), L, unilateral);
+    const int wrist = unilateral ? 3 : 2;
+    int placed = 0;
+    for (int k = 0; k < 200; ++k) {
+      JointVector x = mech.home();
+      x[0] += 0.2 * g(rng);
+      x[1] += 0.2 * g(rng);
+      for (int i = 0; i < 3; ++i) x[wrist + i] = 0.5 * g(rng);
+      Pose target;
+      mech.forward(x.data(), target);
+      target.linear() = so3_exp(0.1 * Vector3d(g(rng), g(rng), g(rng))) * target.linear();
+      // pressed 3 mm in along the stylus, moved about 2 mm
+      target.translation() += 0.003 * target.linear().col(2) +
+                              0.002 * Vector3d(g(rng), g(rng), g(rng));
+      JointVector start = x;
+      for (int i = 0; i < 3; ++i) start[wrist + i] += 0.05 * g(rng);
+      JointVector theta;
+      Pose T;
+      Jacobian J;
+      Vector6 e;
+      if (!mech.place(target, weights[static_cast<size_t>(k % 2)], start, theta, T, J, e)) {
+        continue;
+      }
+      ++placed;
+      Pose T_chain;
+      Jacobian J_chain;
+      mech.forward_jacobian(theta.data(), T_chain, J_chain);
+      ASSERT_EQ(J.cols(), J_chain.cols());
+      EXPECT_LE((T.matrix() - T_chain.matrix()).norm(), 1e-12) << unilateral << " " << k;
+      EXPECT_LE((J - J_chain).norm(), 1e-12) << unilateral << " " << k;
+      EXPECT_LE((e - pose_error(target, T_chain)).norm(), 1e-10) << unilateral << " " << k;
+    }
+    EXPECT_GT(placed, 80) << unilateral;  // (declined: near an edge, lifted)
+  }
+}

@@ -167,6 +167,38 @@ def test_placement_equals_scipys_minimum_of_the_weighted_pose_error(rng):
         assert cost(res.theta) <= ref.fun * (1 + 1e-6) + 1e-16
 
 
+def newton_weights(kind: str) -> np.ndarray:
+    """The three weightings of the Newton placements' tests: an under-actuated device's
+    nearest and unpowered placements (the secondary weight 1e-6 on the rest) and both."""
+    eps = 1e-6 * np.array([1, 1, 1, L * L, L * L, L * L])
+    return {"nearest": np.array([1.0, 1, 1, 0, 0, 0]) + eps,
+            "unpowered": np.array([0, 0, 0, L * L, L * L, L * L]) + eps,
+            "full": np.array([1.0, 1, 1, L * L, L * L, L * L])}[kind]
+
+
+def weighted_cost(m, W):
+    def cost(x, target):
+        e = vm.pose_error(target, m.forward(x))
+        return float(e @ (W * e))
+    return cost
+
+
+def assert_newton_optimum(m, W, target, x0, theta):
+    """theta, placed from x0 without Gauss-Newton iterations, is a local optimum: never above
+    Gauss-Newton's end from x0 nor SciPy's local minimum from x0, and a fixed point of
+    Gauss-Newton (to 1e-9 in the metric the cost sees)."""
+    cost = weighted_cost(m, W)
+    gn = vm.track(m, target, x0, W, closed_form=False, max_iterations=500)
+    assert cost(theta, target) <= cost(gn.theta, target) * (1 + 1e-9) + 1e-15
+    fixed = vm.track(m, target, theta, W, closed_form=False, max_iterations=500)
+    d = np.sqrt(W) * vm.pose_error(m.forward(theta), m.forward(fixed.theta))
+    assert np.abs(d).max() <= 1e-9, d
+    ref = minimize(cost, x0, args=(target,), method="L-BFGS-B",
+                   bounds=list(zip(m.lower, m.upper)),
+                   options={"ftol": 1e-16, "gtol": 1e-13, "maxiter": 2000})
+    assert cost(theta, target) <= ref.fun * (1 + 1e-6) + 1e-16
+
+
 @pytest.mark.parametrize("weights", ["nearest", "unpowered", "full"])
 def test_curve_guide_newton_reaches_the_gauss_newton_optimum(rng, weights):
     """A CurveGuide with weights isotropic per block is placed by Newton's method with exact
@@ -175,15 +207,7 @@ def test_curve_guide_newton_reaches_the_gauss_newton_optimum(rng, weights):
     the optimum never above Gauss-Newton's end from that start nor SciPy's local minimum
     (from far starts two local methods may end in different basins, either the lower)."""
     m = vm.CurveGuide(letter_curve(), L, normal=[0, 0, 1])
-    eps = 1e-6 * np.array([1, 1, 1, L * L, L * L, L * L])
-    W = {"nearest": np.array([1.0, 1, 1, 0, 0, 0]) + eps,
-         "unpowered": np.array([0, 0, 0, L * L, L * L, L * L]) + eps,
-         "full": np.array([1.0, 1, 1, L * L, L * L, L * L])}[weights]
-
-    def cost(x, target):
-        e = vm.pose_error(target, m.forward(x))
-        return float(e @ (W * e))
-
+    W = newton_weights(weights)
     closed = 0
     for _ in range(12):
         x_star = np.r_[rng.uniform(0.1, 0.9), 0.6 * rng.standard_normal(3)]
@@ -195,16 +219,54 @@ def test_curve_guide_newton_reaches_the_gauss_newton_optimum(rng, weights):
         if cf.iterations > 0:
             continue  # Newton declined (a stop, or no convergence): Gauss-Newton placed it
         closed += 1
-        gn = vm.track(m, target, x0, W, closed_form=False, max_iterations=500)
-        assert cost(cf.theta, target) <= cost(gn.theta, target) * (1 + 1e-9) + 1e-15
-        fixed = vm.track(m, target, cf.theta, W, closed_form=False, max_iterations=500)
-        d = np.sqrt(W) * vm.pose_error(m.forward(cf.theta), m.forward(fixed.theta))
-        assert np.abs(d).max() <= 1e-9, d
-        ref = minimize(cost, x0, args=(target,), method="L-BFGS-B",
-                       bounds=list(zip(m.lower, m.upper)),
-                       options={"ftol": 1e-16, "gtol": 1e-13, "maxiter": 2000})
-        assert cost(cf.theta, target) <= ref.fun * (1 + 1e-6) + 1e-16
+        assert_newton_optimum(m, W, target, x0, cf.theta)
     assert closed >= 10, closed  # Newton places nearly every such pose
+
+
+@pytest.mark.parametrize("unilateral", [False, True])
+@pytest.mark.parametrize("weights", ["nearest", "unpowered", "full"])
+def test_surface_probe_newton_reaches_the_gauss_newton_optimum(rng, weights, unilateral):
+    """A SurfaceProbe on a NURBS patch, the tip in contact, weights isotropic per block: placed
+    by Newton's method on the tip's parameters and the stylus direction (no Gauss-Newton
+    iterations) from the last cycle's solution, the handle moved a little since. It ends at
+    a local optimum, a fixed point of Gauss-Newton, never above Gauss-Newton's end from the
+    same start nor SciPy's local minimum; one-sided, it declines where the handle lifts the
+    tip off (Gauss-Newton places it, above the surface)."""
+    m = vm.SurfaceProbe(patch(), L, unilateral=unilateral)
+    W = newton_weights(weights)
+    closed = lifted = 0
+    for k in range(16):
+        x_star = np.zeros(m.dof)
+        x_star[:2] = rng.uniform(0.25, 0.75, 2)
+        x_star[-3:] = 0.5 * rng.standard_normal(3)
+        target = m.forward(x_star)
+        # turned by about 0.2 rad about the tip
+        turn = vm.so3_exp(0.2 * rng.standard_normal(3))
+        tip = target[:3, 3] + L * target[:3, 2]
+        target[:3, :3] = turn @ target[:3, :3]
+        target[:3, 3] = tip - L * target[:3, 2]
+        n = patch().normal(*x_star[:2])
+        # moved about 2 mm and pressed 3 to 8 mm in (every fourth lifted 5 mm off, below)
+        target[:3, 3] += 0.002 * rng.standard_normal(3) - (0.003 + 0.005 * rng.uniform()) * n
+        # the last cycle's solution, then the handle moved by 0.3 mm and 0.01 rad
+        x0 = vm.track(m, target, x_star, W, closed_form=False, max_iterations=500).theta
+        target[:3, :3] = vm.so3_exp(0.01 * rng.standard_normal(3)) @ target[:3, :3]
+        target[:3, 3] += 0.0003 * rng.standard_normal(3)
+        if k % 4 == 3:
+            target[:3, 3] += 0.013 * n
+        cf = vm.track(m, target, x0, W)
+        if cf.iterations > 0:
+            gn = vm.track(m, target, x0, W, closed_form=False, max_iterations=500)
+            lifted += unilateral and gn.theta[2] > 0.0
+            continue  # Newton declined: Gauss-Newton placed it
+        closed += 1
+        if unilateral:
+            assert cf.theta[2] == 0.0
+        assert_newton_optimum(m, W, target, x0, cf.theta)
+    # Newton places nearly every pose in contact (the four lifted go to Gauss-Newton)
+    assert closed >= (10 if unilateral else 14), closed
+    if unilateral:
+        assert lifted == 4, lifted
 
 
 def test_bad_arguments_name_the_parameter():
