@@ -31,6 +31,21 @@ struct Binomial {
 };
 constexpr Binomial kBin{};
 
+// falling factorials n! / (n - k)! for n, k <= kMaxDerivativeOrder (0 where k > n)
+struct Falling {
+  double f[kD][kD] = {};
+  constexpr Falling() {
+    for (int n = 0; n < kD; ++n) {
+      double v = 1.0;
+      for (int k = 0; k <= n; ++k) {
+        f[n][k] = v;
+        v *= static_cast<double>(n - k);
+      }
+    }
+  }
+};
+constexpr Falling kFall{};
+
 // ---- knot vectors --------------------------------------------------------------------
 
 // Checks a knot vector for n control points of degree p; returns the domain [U_p, U_n].
@@ -406,6 +421,17 @@ NurbsCurve::NurbsCurve(const Eigen::MatrixX3d& control_points, const Eigen::Vect
     pw_.col(i).head<3>() = weights[i] * control_points.row(i).transpose();
     pw_(3, i) = weights[i];
   }
+  // each non-empty span's Taylor coefficients about its middle, C_a = d^a Cw / du^a / a!
+  // (a polynomial of degree p there; about the middle the powers stay within half the
+  // span), for derivatives_in_span
+  taylor_.assign(static_cast<size_t>(n_ - p_) * (p_ + 1), Eigen::Vector4d::Zero());
+  for (int span = p_; span < n_; ++span) {
+    if (!(knots_[span] < knots_[span + 1])) continue;
+    Eigen::Vector4d Cw[kD];
+    homogeneous_from_basis(0.5 * (knots_[span] + knots_[span + 1]), span, p_, Cw);
+    for (int a = 0; a <= p_; ++a)
+      taylor_[static_cast<size_t>(span - p_) * (p_ + 1) + a] = Cw[a] / kFall.f[a][a];
+  }
   sample_u_ = sample_parameters(knots_, n_, p_, samples_per_span(p_));
   const size_t ns = sample_u_.size();
   sample_p_.reserve(ns);
@@ -451,18 +477,35 @@ void NurbsCurve::derivatives(double u, int order, CurveDerivatives& out) const n
   derivatives_in_span(u, find_span(knots_.data(), n_, p_, u), order, out);
 }
 
-void NurbsCurve::derivatives_in_span(double u, int span, int order,
-                                     CurveDerivatives& out) const noexcept {
-  const int nd = clamp_order(order);
-  const double* U = knots_.data();
+void NurbsCurve::homogeneous_from_basis(double u, int span, int nd,
+                                        Eigen::Vector4d (&Cw)[kMaxDerivativeOrder + 1])
+    const noexcept {
   double ders[kD][kP];
-  basis_derivatives(U, span, p_, u, nd, ders);
+  basis_derivatives(knots_.data(), span, p_, u, nd, ders);
   // A3.2 on the homogeneous points
-  Eigen::Vector4d Cw[kD];
   for (int k = 0; k <= nd; ++k) {
     Cw[k].setZero();
     if (k > p_) continue;
     for (int j = 0; j <= p_; ++j) Cw[k] += ders[k][j] * pw_.col(span - p_ + j);
+  }
+}
+
+void NurbsCurve::derivatives_in_span(double u, int span, int order,
+                                     CurveDerivatives& out) const noexcept {
+  const int nd = clamp_order(order);
+  // the homogeneous curve's derivatives from the span's Taylor coefficients about its
+  // middle: d^k Cw / du^k = sum_{a>=k} C_a a!/(a-k)! x^(a-k), by Horner
+  const Eigen::Vector4d* C = taylor_.data() + static_cast<size_t>(span - p_) * (p_ + 1);
+  const double x = u - 0.5 * (knots_[span] + knots_[span + 1]);
+  Eigen::Vector4d Cw[kD];
+  for (int k = 0; k <= nd; ++k) {
+    if (k > p_) {
+      Cw[k].setZero();
+      continue;
+    }
+    Eigen::Vector4d acc = kFall.f[p_][k] * C[p_];
+    for (int a = p_ - 1; a >= k; --a) acc = acc * x + kFall.f[a][k] * C[a];
+    Cw[k] = acc;
   }
   // A4.2
   for (int k = 0; k <= nd; ++k) {
@@ -588,6 +631,26 @@ NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::
       pw_(3, c) = weights(i, j);
     }
   }
+  // each non-empty span pair's Taylor coefficients about its middle, C_ab =
+  // d^(a+b) Sw / du^a dv^b / (a! b!) from the basis functions (a polynomial of degree p, q
+  // there: its Taylor series is exact), for derivatives_in_spans
+  const size_t block = static_cast<size_t>(p_ + 1) * (q_ + 1);
+  taylor_.assign(static_cast<size_t>(nu_ - p_) * (nv_ - q_) * block, Eigen::Vector4d::Zero());
+  for (int su = p_; su < nu_; ++su) {
+    if (!(knots_u_[su] < knots_u_[su + 1])) continue;
+    for (int sv = q_; sv < nv_; ++sv) {
+      if (!(knots_v_[sv] < knots_v_[sv + 1])) continue;
+      Eigen::Vector4d Sw[kD][kD];
+      homogeneous_from_basis(0.5 * (knots_u_[su] + knots_u_[su + 1]),
+                             0.5 * (knots_v_[sv] + knots_v_[sv + 1]), su, sv,
+                             std::max(p_, q_), Sw);
+      Eigen::Vector4d* C =
+          taylor_.data() + static_cast<size_t>((su - p_) * (nv_ - q_) + (sv - q_)) * block;
+      for (int a = 0; a <= p_; ++a)
+        for (int b = 0; b <= q_; ++b)
+          C[a * (q_ + 1) + b] = Sw[a][b] / (kFall.f[a][a] * kFall.f[b][b]);
+    }
+  }
   // C^2 across a knot of multiplicity k needs degree - k >= 2
   const int mu = interior_multiplicity(knots_u_, nu_, p_);
   const int mv = interior_multiplicity(knots_v_, nv_, q_);
@@ -669,14 +732,14 @@ void NurbsSurface::derivatives(double u, double v, int order,
                        find_span(knots_v_.data(), nv_, q_, v), order, out);
 }
 
-void NurbsSurface::derivatives_in_spans(double u, double v, int su, int sv, int order,
-                                        SurfaceDerivatives& out) const noexcept {
-  const int nd = clamp_order(order);
+void NurbsSurface::homogeneous_from_basis(double u, double v, int su, int sv, int nd,
+                                          Eigen::Vector4d (&Sw)[kMaxDerivativeOrder + 1]
+                                                               [kMaxDerivativeOrder + 1])
+    const noexcept {
   double Nu[kD][kP], Nv[kD][kP];
   basis_derivatives(knots_u_.data(), su, p_, u, nd, Nu);
   basis_derivatives(knots_v_.data(), sv, q_, v, nd, Nv);
   // A3.6 on the homogeneous points
-  Eigen::Vector4d Sw[kD][kD];
   const int du = std::min(nd, p_), dv = std::min(nd, q_);
   for (int k = 0; k <= nd; ++k)
     for (int l = 0; l <= nd; ++l) Sw[k][l].setZero();
@@ -688,6 +751,40 @@ void NurbsSurface::derivatives_in_spans(double u, double v, int su, int sv, int 
     }
     for (int l = 0; l <= dv; ++l) {
       for (int s = 0; s <= q_; ++s) Sw[k][l] += Nv[l][s] * temp[s];
+    }
+  }
+}
+
+void NurbsSurface::derivatives_in_spans(double u, double v, int su, int sv, int order,
+                                        SurfaceDerivatives& out) const noexcept {
+  const int nd = clamp_order(order);
+  // the homogeneous surface's derivatives from the span pair's Taylor coefficients about
+  // its middle: d^(k+l) Sw / du^k dv^l = sum_{a>=k, b>=l} C_ab a!/(a-k)! b!/(b-l)!
+  // x^(a-k) y^(b-l), Horner in y for each a, then in x
+  const Eigen::Vector4d* C =
+      taylor_.data() + static_cast<size_t>((su - p_) * (nv_ - q_) + (sv - q_)) * (p_ + 1) * (q_ + 1);
+  const double x = u - 0.5 * (knots_u_[su] + knots_u_[su + 1]);
+  const double y = v - 0.5 * (knots_v_[sv] + knots_v_[sv + 1]);
+  const int du = std::min(nd, p_), dv = std::min(nd, q_);
+  Eigen::Vector4d T[kP][kD];  // T[a][l]: d^l/dv^l of sum_b C_ab y^b
+  for (int a = 0; a <= p_; ++a) {
+    const Eigen::Vector4d* row = C + a * (q_ + 1);
+    for (int l = 0; l <= dv; ++l) {
+      Eigen::Vector4d acc = kFall.f[q_][l] * row[q_];
+      for (int b = q_ - 1; b >= l; --b) acc = acc * y + kFall.f[b][l] * row[b];
+      T[a][l] = acc;
+    }
+  }
+  Eigen::Vector4d Sw[kD][kD];
+  for (int k = 0; k <= nd; ++k) {
+    for (int l = 0; l <= nd; ++l) {
+      if (k > du || l > dv) {
+        Sw[k][l].setZero();
+        continue;
+      }
+      Eigen::Vector4d acc = kFall.f[p_][k] * T[p_][l];
+      for (int a = p_ - 1; a >= k; --a) acc = acc * x + kFall.f[a][k] * T[a][l];
+      Sw[k][l] = acc;
     }
   }
   // A4.4, every (k, l) with k, l <= order (as geomdl)

@@ -117,11 +117,18 @@ class NurbsCurve final : public Curve {
   const Eigen::VectorXd& knots() const noexcept { return knots_; }
 
  private:
-  // derivatives with the basis functions of knot span `span` (a one-sided limit at a knot)
+  // derivatives within knot span `span` (a one-sided limit at a knot), from taylor_
   void derivatives_in_span(double u, int span, int order, CurveDerivatives& d) const noexcept;
+  // the homogeneous curve's derivatives to order nd from the basis functions of `span`
+  // (The NURBS Book, A3.2), for taylor_
+  void homogeneous_from_basis(double u, int span, int nd,
+                              Eigen::Vector4d (&Cw)[kMaxDerivativeOrder + 1]) const noexcept;
 
   int n_ = 0, p_ = 1;
   Eigen::Matrix4Xd pw_;  // homogeneous control points (w x, w y, w z, w)
+  // per span (span - p), p + 1 coefficients C_a of the homogeneous curve, a polynomial
+  // there: sum C_a (u - u_mid)^a, u_mid the span's middle; zero for an empty span
+  std::vector<Eigen::Vector4d> taylor_;
   Eigen::VectorXd knots_;
   double lower_ = 0.0, upper_ = 1.0;
   // closest point: the samples' parameters and points; the first derivative at the start
@@ -162,12 +169,21 @@ class NurbsSurface final : public Surface {
   const Eigen::VectorXd& knots_v() const noexcept { return knots_v_; }
 
  private:
-  // derivatives with the basis functions of knot spans su, sv (one-sided limits at knots)
+  // derivatives within knot spans su, sv (one-sided limits at knots), from taylor_
   void derivatives_in_spans(double u, double v, int su, int sv, int order,
                             SurfaceDerivatives& d) const noexcept;
+  // the homogeneous surface's derivatives to order nd (every k, l <= nd) from the basis
+  // functions of spans su, sv (The NURBS Book, A3.6), for taylor_
+  void homogeneous_from_basis(double u, double v, int su, int sv, int nd,
+                              Eigen::Vector4d (&Sw)[kMaxDerivativeOrder + 1]
+                                                   [kMaxDerivativeOrder + 1]) const noexcept;
 
   int nu_ = 0, nv_ = 0, p_ = 1, q_ = 1;
   Eigen::Matrix4Xd pw_;  // column i * nv + j
+  // per span pair (su - p) * (nv - q) + (sv - q), (p + 1)(q + 1) coefficients C_ab (index
+  // a * (q + 1) + b) of the homogeneous surface, a polynomial there: sum C_ab (u - u_mid)^a
+  // (v - v_mid)^b about the span pair's middle; zero for an empty span
+  std::vector<Eigen::Vector4d> taylor_;
   Eigen::VectorXd knots_u_, knots_v_;
   Eigen::Vector2d lower_, upper_;
   std::vector<double> sample_u_, sample_v_;

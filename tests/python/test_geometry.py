@@ -77,7 +77,7 @@ def geomdl_surface(P, w, Uu, Uv, p, q):
     return s
 
 
-@pytest.mark.parametrize("p", [1, 2, 3, 4])
+@pytest.mark.parametrize("p", [1, 2, 3, 4, 7])
 def test_nurbs_curve_matches_geomdl(p):
     rng = np.random.default_rng(100 + p)
     for _ in range(4):
@@ -97,7 +97,7 @@ def test_nurbs_curve_matches_geomdl(p):
         )
 
 
-@pytest.mark.parametrize("p,q", [(1, 2), (2, 2), (3, 1), (3, 4), (4, 3)])
+@pytest.mark.parametrize("p,q", [(1, 2), (2, 2), (3, 1), (3, 4), (4, 3), (7, 5)])
 def test_nurbs_surface_matches_geomdl(p, q):
     rng = np.random.default_rng(10 * p + q)
     for _ in range(2):
@@ -111,6 +111,32 @@ def test_nurbs_surface_matches_geomdl(p, q):
             expected = np.array(ref.derivatives(float(u), float(v), 2))
             np.testing.assert_allclose(d, expected, rtol=1e-10, atol=1e-10)
             np.testing.assert_allclose(s.evaluate(u, v), expected[0, 0], rtol=1e-10, atol=1e-10)
+
+
+@pytest.mark.parametrize("p", [3, 7])
+def test_nurbs_far_from_zero_and_wide_knots_match_geomdl(p):
+    # evaluation runs from each span's Taylor coefficients about its middle: knots 1000 + 250
+    # U (far from 0, spans 250 wide) give the shape on U reparametrised, its k-th
+    # derivative 250^-k times geomdl's on U (geomdl takes parameters in [0, 1] only)
+    rng = np.random.default_rng(7 + p)
+    P, w, U = random_curve(rng, p, n=p + 5)
+    c, ref = vm.NurbsCurve(P, w, 1000.0 + 250.0 * np.asarray(U), p), geomdl_curve(P, w, U, p)
+    k = np.arange(p + 1)[:, None]
+    for u in np.concatenate([[0.0, 1.0], rng.uniform(0, 1, 8)]):
+        expected = np.array(ref.derivatives(float(u), p))
+        scale = np.abs(expected).max(axis=1, keepdims=True)  # each order's own size
+        got = c.derivatives(1000.0 + 250.0 * u, p) * 250.0**k
+        assert np.all(np.abs(got - expected) <= 1e-9 * np.abs(expected) + 1e-10 * scale), u
+    P, w, Uu, Uv = random_surface(rng, p, 2)
+    s = vm.NurbsSurface(P, w, 1000.0 + 250.0 * np.asarray(Uu), -500.0 + 250.0 * np.asarray(Uv),
+                        p, 2)
+    ref = geomdl_surface(P, w, Uu, Uv, p, 2)
+    kl = (np.arange(3)[:, None] + np.arange(3)[None, :])[..., None]
+    for u, v in rng.uniform(0, 1, (8, 2)):
+        expected = np.array(ref.derivatives(float(u), float(v), 2))
+        scale = np.abs(expected).max(axis=2, keepdims=True)
+        got = s.derivatives(1000.0 + 250.0 * u, -500.0 + 250.0 * v, 2) * 250.0**kl
+        assert np.all(np.abs(got - expected) <= 1e-9 * np.abs(expected) + 1e-10 * scale), (u, v)
 
 
 def test_quarter_circle_and_curvature():
