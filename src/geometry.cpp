@@ -327,7 +327,7 @@ struct Best {
   }
 };
 
-constexpr int kCandidates = 12;
+constexpr int kCandidates = 24;
 
 Eigen::Vector3d safe_normalized(const Eigen::Vector3d& v, const char* name) {
   const double n = v.norm();
@@ -878,10 +878,13 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
           if (dd < dmin) dmin = dd, start = a * mv + b;
         }
       }
-      // on a creased surface from inside the cell (a corner on a crease may descend to
-      // the other side's minimum): index samples + cell
-      if (umin <= 0.0 && umax >= 0.0 && vmin <= 0.0 && vmax >= 0.0)
-        best.add(creased_ ? mu * mv + i * (mv - 1) + j : start, dmin);
+      // on a creased surface also from inside the cell (a corner on a crease may descend
+      // to the other side's minimum, and one beside it to this side's): index samples +
+      // cell
+      if (umin <= 0.0 && umax >= 0.0 && vmin <= 0.0 && vmax >= 0.0) {
+        best.add(start, dmin);
+        if (creased_) best.add(mu * mv + i * (mv - 1) + j, dmin);
+      }
       if (i == 0) edge_v(0, j);
       if (i + 2 == mu) edge_v(mu - 1, j);
       if (j == 0) edge_u(i, 0);

@@ -470,6 +470,23 @@ def test_surface_closest_point_beside_a_crease_takes_the_nearer_face():
     np.testing.assert_allclose(uv, [point[0], 0.4], atol=1e-12)
 
 
+def test_surface_closest_point_just_beside_a_crease_from_its_corner():
+    # a bilinear patch (every interior knot a crease) with a spike of weight 50 whose nearest
+    # point lies 0.4e-3 beside the crease v = 0.25949: the start inside the cell alone ends
+    # 3.2 cm away; the corner on the crease reaches it (both are run on a creased surface)
+    P = np.array([
+        [[0.0387, 0.0178, -0.1418], [0.0264, 0.2309, 0.2110], [-0.0488, 0.4321, -0.2668],
+         [-0.0199, 0.5564, -0.1201], [-0.0097, 0.8173, 0.1587], [-0.0466, 1.0130, -0.1677]],
+        [[0.9657, 0.0406, 0.0186], [0.9938, 0.1868, -0.0890], [0.9651, 0.4080, -0.0191],
+         [1.0154, 0.6017, 1.1632], [1.0355, 0.7696, 0.0008], [1.0306, 0.9721, 0.1672]]])
+    w = np.array([[1.6244, 1.3875, 1.4468, 0.7345, 1.6898, 1.0797],
+                  [0.7795, 1.2223, 1.7144, 50.0, 1.8531, 0.5953]])
+    s = vm.NurbsSurface(P, w, [0, 0, 1, 1], [0, 0, 0.0731, 0.2595, 0.4363, 0.8171, 1, 1], 1, 1)
+    x = np.array([0.5493, 0.4165, -0.0772])
+    _, point = s.closest_point(x)
+    assert np.linalg.norm(point - x) <= np.min(np.linalg.norm(surface_grid(s, 301) - x, axis=1))
+
+
 def test_curve_closest_points_never_worse_than_a_dense_grid_over_many_points():
     # the search skips sample intervals whose bounding sphere is farther than the best found:
     # over many points and spiky curves (a weight of 50), never a worse answer for it
