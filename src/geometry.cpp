@@ -329,6 +329,22 @@ struct Best {
 
 constexpr int kCandidates = 24;
 
+// f(x) = |S(x) - p|^2 / 2 with its gradient and Hessian, for refine<2>
+struct DistanceToSurface {
+  const Surface& s;
+  const Eigen::Vector3d& p;
+  double operator()(const Eigen::Vector2d& x, Eigen::Vector2d& g, Eigen::Matrix2d& H) const noexcept {
+    SurfaceDerivatives d;
+    s.derivatives(x[0], x[1], 2, d);
+    const Eigen::Vector3d r = d(0, 0) - p;
+    g << d(1, 0).dot(r), d(0, 1).dot(r);
+    H(0, 0) = d(1, 0).squaredNorm() + d(2, 0).dot(r);
+    H(1, 1) = d(0, 1).squaredNorm() + d(0, 2).dot(r);
+    H(0, 1) = H(1, 0) = d(1, 0).dot(d(0, 1)) + d(1, 1).dot(r);
+    return 0.5 * r.squaredNorm();
+  }
+};
+
 Eigen::Vector3d safe_normalized(const Eigen::Vector3d& v, const char* name) {
   const double n = v.norm();
   if (!(std::isfinite(n) && n > 0.0)) {
@@ -375,6 +391,17 @@ Eigen::Vector3d Surface::normal(double u, double v) const noexcept {
   }
   const double len = n.norm();
   return len > 0.0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::UnitZ();
+}
+
+Eigen::Vector2d Surface::closest_point_from(const Eigen::Vector3d& p, const Eigen::Vector2d& start,
+                                           const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
+                                           Eigen::Vector3d& point) const noexcept {
+  Eigen::Vector2d x = start.cwiseMax(lo).cwiseMin(hi);
+  refine<2>(x, lo, hi, DistanceToSurface{*this, p});
+  SurfaceDerivatives d;
+  derivatives(x[0], x[1], 0, d);
+  point = d(0, 0);
+  return x;
 }
 
 SurfaceCurvature Surface::curvature(double u, double v) const noexcept {
@@ -891,16 +918,7 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
       if (j + 2 == mv) edge_u(i, mv - 1);
     }
   }
-  auto eval = [&](const Eigen::Vector2d& x, Eigen::Vector2d& g, Eigen::Matrix2d& H) {
-    SurfaceDerivatives d;
-    derivatives(x[0], x[1], 2, d);
-    const Eigen::Vector3d r = d(0, 0) - p;
-    g << d(1, 0).dot(r), d(0, 1).dot(r);
-    H(0, 0) = d(1, 0).squaredNorm() + d(2, 0).dot(r);
-    H(1, 1) = d(0, 1).squaredNorm() + d(0, 2).dot(r);
-    H(0, 1) = H(1, 0) = d(1, 0).dot(d(0, 1)) + d(1, 1).dot(r);
-    return 0.5 * r.squaredNorm();
-  };
+  const DistanceToSurface eval{*this, p};
   double best_f = kInf;
   Eigen::Vector2d best_x = lower_;
   for (int c = 0; c < best.count; ++c) {

@@ -233,7 +233,7 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
                          JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
-  if (!sphere_) return place_in_contact(target, w_p, w_r, start, theta, T, J, e);
+  if (!sphere_) return place_on_surface(target, w_p, w_r, start, theta, T, J, e);
   // The tip nearest the point q = p_R - L u below the handle is the sphere's point along q's
   // direction from the centre (or q itself, lifted, when one-sided and outside), so the
   // position cost depends on u only through its angle from v, the centre-to-handle
@@ -287,13 +287,51 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
   return true;
 }
 
-bool SurfaceProbe::place_in_contact(const Pose& target, double w_p, double w_r,
+// The handle's own pose where the stylus kept at its orientation puts the tip above the
+// surface (a one-sided probe lifted off: the pose error zero, the cost's least): the tip
+// q = p_R + L z_R projected onto the surface locally from uv; false where q is not above
+// it along the normal at that point (or the projection ends on a parameter bound, where
+// q - S is not along the normal).
+bool SurfaceProbe::place_lifted(const Pose& target, const JointVector& start, Eigen::Vector2d& uv,
+                                JointVector& theta, Pose& T, Jacobian& J,
+                                Vector6& e) const noexcept {
+  const Eigen::Vector3d q = tip_of(target, length_);
+  const Eigen::Vector2d lo(lower()[0], lower()[1]), hi(upper()[0], upper()[1]);
+  Eigen::Vector3d foot;
+  uv = surface_->closest_point_from(q, uv, lo, hi, foot);
+  SurfaceDerivatives d;
+  surface_->derivatives(uv[0], uv[1], 2, d);
+  SurfaceFrame f;
+  surface_frame(*surface_, uv[0], uv[1], d, f);
+  const Eigen::Vector3d& n = f.B.col(2);
+  const double h = n.dot(q - foot);
+  if (!(h > 0.0) || !((q - foot - h * n).norm() <= 1e-10 * length_)) return false;
+  theta.resize(dof());
+  theta[0] = uv[0];
+  theta[1] = uv[1];
+  theta[2] = h;
+  J.resize(6, 6);
+  const Eigen::Vector3d tip = foot + h * n;
+  detail::wrist_at_tip(f.B, tip, length_, target, target.linear(), Eigen::Vector3d::Zero(),
+                       start.data() + 3, 3, theta, T, J, e);
+  // forward_jacobian's columns at height h
+  const Eigen::Vector3d arm = T.translation() - tip;
+  J.col(0) << d(1, 0) + h * f.n_u + f.w_u.cross(arm), f.w_u;
+  J.col(1) << d(0, 1) + h * f.n_v + f.w_v.cross(arm), f.w_v;
+  J.col(2) << n, 0.0, 0.0, 0.0;
+  return true;
+}
+
+bool SurfaceProbe::place_on_surface(const Pose& target, double w_p, double w_r,
                                     const JointVector& start, JointVector& theta, Pose& T,
                                     Jacobian& J, Vector6& e) const noexcept {
-  // lifted at the start: Gauss-Newton (the tip's height is a third coordinate)
-  if (unilateral_ && !(start[2] == 0.0)) return false;
   const int wrist = unilateral_ ? 3 : 2;
   Eigen::Vector2d uv(start[0], start[1]);
+  // one-sided and lifted at the start: lifted still if the handle's own pose allows it,
+  // else in contact from the tip's nearest point
+  if (unilateral_ && !(start[2] == 0.0) && place_lifted(target, start, uv, theta, T, J, e)) {
+    return true;
+  }
   SurfaceDerivatives d;
   surface_->derivatives(uv[0], uv[1], 2, d);
   SurfaceFrame f;
@@ -308,9 +346,13 @@ bool SurfaceProbe::place_in_contact(const Pose& target, double w_p, double w_r,
   surface_frame(*surface_, uv[0], uv[1], d, f);
   const Eigen::Vector3d& n = f.B.col(2);
   // one-sided: in contact only where the cost would press the tip into the surface (its
-  // derivative in the height, 2 w_p r . n, is >= 0); else it lifts: Gauss-Newton
+  // derivative in the height, 2 w_p r . n, is >= 0); else it lifts off
   const Eigen::Vector3d r = d(0, 0) + length_ * u - target.translation();
-  if (unilateral_ && r.dot(n) < 0.0) return false;
+  if (unilateral_ && r.dot(n) < 0.0) {
+    if (!(start[2] == 0.0)) return false;  // (tried above)
+    uv = Eigen::Vector2d(start[0], start[1]);
+    return place_lifted(target, start, uv, theta, T, J, e);
+  }
   Eigen::Vector3d turn;
   const Eigen::Matrix3d R = detail::turn_stylus(target.linear(), u, turn);
   theta.resize(dof());

@@ -87,6 +87,13 @@ class Surface {
   /// The parameters (u, v) of the point of the surface closest to p; the point in `point`.
   virtual Eigen::Vector2d closest_point(const Eigen::Vector3d& p,
                                         Eigen::Vector3d& point) const noexcept = 0;
+  /// The local closest point reached from `start` (clamped to [lo, hi]) by the closest
+  /// point's refinement (projected Newton on |S - p|^2 / 2 within [lo, hi], which may be
+  /// infinite where u wraps): the nearest point near a known one, as when tracking a point
+  /// cycle to cycle, not the global one. The point in `point`.
+  Eigen::Vector2d closest_point_from(const Eigen::Vector3d& p, const Eigen::Vector2d& start,
+                                     const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
+                                     Eigen::Vector3d& point) const noexcept;
 
   /// Mean and Gaussian curvature from the fundamental forms, with respect to normal().
   SurfaceCurvature curvature(double u, double v) const noexcept;

@@ -242,17 +242,20 @@ class SurfaceProbe final : public Mechanism {
   void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept override;
   /// With weights isotropic per block. On a Sphere: the weighted optimum in closed form
   /// (the stylus turns in the plane of the handle's stylus and the centre-to-handle
-  /// direction, one angle; docs/theory.md, section 4). On every other surface, with the tip
-  /// in contact at the start (always where bilateral): Newton's method on the tip's surface
-  /// parameters and the stylus direction, with exact second derivatives (the roll about
-  /// the stylus drops out); false where the tip lifts, a parameter would leave its bounds
-  /// or Newton does not converge: Gauss-Newton then.
+  /// direction, one angle; docs/theory.md, section 4). On every other surface: with the
+  /// tip in contact, Newton's method on the tip's surface parameters and the stylus
+  /// direction, with exact second derivatives (the roll about the stylus drops out);
+  /// one-sided and lifted off, the handle's own pose (the tip's nearest surface point
+  /// tracked from the start). False where a parameter would leave its bounds or Newton
+  /// does not converge: Gauss-Newton then.
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 
  private:
-  bool place_in_contact(const Pose& target, double w_p, double w_r, const JointVector& start,
+  bool place_on_surface(const Pose& target, double w_p, double w_r, const JointVector& start,
                         JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept;
+  bool place_lifted(const Pose& target, const JointVector& start, Eigen::Vector2d& uv,
+                    JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept;
 
   std::shared_ptr<const Surface> surface_;
   const Sphere* sphere_ = nullptr;  // surface_ when it is a Sphere
