@@ -6,6 +6,7 @@
 #include <nanobind/ndarray.h>
 
 #include <initializer_list>
+#include <cmath>
 #include <string>
 #include <utility>
 #include <vector>
@@ -115,6 +116,38 @@ nb::tuple surface_closest(const Surface& s, nb::handle p) {
   return nb::make_tuple(uv, point);
 }
 
+// (u, v): an array of shape (2,), finite unless `bound` (a parameter bound may be +-inf)
+Eigen::Vector2d to_parameters(const char* name, nb::handle obj, bool bound) {
+  std::vector<long> s;
+  auto d = as_doubles(name, obj, 1, "an array of shape (2,)", s);
+  if (s[0] != 2) {
+    throw nb::value_error((std::string(name) + ": expected an array of shape (2,), got shape " +
+                           shape_str(s)).c_str());
+  }
+  if (std::isnan(d[0]) || std::isnan(d[1]) ||
+      (!bound && !(std::isfinite(d[0]) && std::isfinite(d[1])))) {
+    throw nb::value_error((std::string(name) + ": expected " + (bound ? "numbers" : "finite numbers") +
+                           ", got (" + std::to_string(d[0]) + ", " + std::to_string(d[1]) + ")").c_str());
+  }
+  return {d[0], d[1]};
+}
+
+nb::tuple surface_closest_from(const Surface& s, nb::handle p, nb::handle start, nb::handle lo,
+                               nb::handle hi) {
+  const Eigen::Vector3d x = to_point("p", p);
+  const Eigen::Vector2d x0 = to_parameters("start", start, false);
+  const Eigen::Vector2d l = lo.is_none() ? s.lower() : to_parameters("lo", lo, true);
+  const Eigen::Vector2d h = hi.is_none() ? s.upper() : to_parameters("hi", hi, true);
+  if (!(l[0] <= h[0] && l[1] <= h[1])) {
+    throw nb::value_error(("hi: expected >= lo in each parameter, got lo (" + std::to_string(l[0]) +
+                           ", " + std::to_string(l[1]) + "), hi (" + std::to_string(h[0]) + ", " +
+                           std::to_string(h[1]) + ")").c_str());
+  }
+  Eigen::Vector3d point;
+  const Eigen::Vector2d uv = s.closest_point_from(x, x0, l, h, point);
+  return nb::make_tuple(uv, point);
+}
+
 nb::dict curvature_dict(const Surface& s, double u, double v) {
   const SurfaceCurvature c = s.curvature(u, v);
   nb::dict d;
@@ -213,6 +246,11 @@ void bind_geometry(nb::module_& m) {
            "{'mean', 'gaussian'}: curvatures with respect to normal() [1/m, 1/m^2].")
       .def("closest_point", &surface_closest, "p"_a,
            "(parameters (2,), point (3,)): the point of the surface closest to p.")
+      .def("closest_point_from", &surface_closest_from, "p"_a, "start"_a, "lo"_a = nb::none(),
+           "hi"_a = nb::none(),
+           "(parameters (2,), point (3,)): the local closest point to p reached from the "
+           "parameters `start` within [lo, hi] (default the surface's bounds): the nearest "
+           "point near a known one, as when tracking a point, not the global one.")
       .def(
           "closest_points",
           [](const Surface& sf, nb::handle X) {

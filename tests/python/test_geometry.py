@@ -487,6 +487,43 @@ def test_surface_closest_point_just_beside_a_crease_from_its_corner():
     assert np.linalg.norm(point - x) <= np.min(np.linalg.norm(surface_grid(s, 301) - x, axis=1))
 
 
+def test_closest_point_from_a_start_is_the_local_one():
+    # a sphere seen as a surface (u wraps: unbounded), from starts near the answer: the
+    # radial point (closed form); a NURBS patch: the global answer from near it, and held
+    # to a box that excludes it, no point of the box nearer
+    c, r = np.array([0.1, -0.2, 0.3]), 0.5
+    s = vm.Sphere(c, r)
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        x = c + (r + rng.uniform(0.01, 0.3)) * d
+        u0, v0 = s.closest_point(c + r * d)[0] + rng.normal(0, 0.2, 2)
+        uv, point = s.closest_point_from(x, [u0, np.clip(v0, -1.5, 1.5)],
+                                         lo=[-np.inf, -np.pi / 2], hi=[np.inf, np.pi / 2])
+        np.testing.assert_allclose(point, c + r * d, atol=1e-10)
+        np.testing.assert_allclose(s.evaluate(*uv), point, atol=1e-12)
+    # NURBS, a start near the global answer gives it
+    P, w, Uu, Uv = random_surface(rng, 3, 3)
+    n = vm.NurbsSurface(P, w, Uu, Uv, 3, 3)
+    x = n.evaluate(0.4, 0.6) + 0.02 * n.normal(0.4, 0.6)
+    uv_g, p_g = n.closest_point(x)
+    uv, p = n.closest_point_from(x, uv_g + 0.05)
+    np.testing.assert_allclose(p, p_g, atol=1e-12)
+    # held to a box: the answer on its edge, no nearer point of the surface inside the box
+    uv, p = n.closest_point_from(x, [0.1, 0.1], lo=[0.0, 0.0], hi=[0.3, 0.3])
+    assert np.all(uv >= 0.0) and np.all(uv <= 0.3) and max(uv) == 0.3
+    g = np.linspace(0, 0.3, 61)
+    box = np.array([[n.evaluate(a, b) for b in g] for a in g]).reshape(-1, 3)
+    assert np.linalg.norm(p - x) <= np.min(np.linalg.norm(box - x, axis=1)) + 1e-12
+    with pytest.raises(ValueError, match=r"start: expected an array of shape \(2,\)"):
+        n.closest_point_from(x, [0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="start: expected finite numbers"):
+        n.closest_point_from(x, [np.nan, 0.2])
+    with pytest.raises(ValueError, match="hi: expected >= lo"):
+        n.closest_point_from(x, [0.1, 0.2], lo=[0.5, 0.0], hi=[0.4, 1.0])
+
+
 def test_curve_closest_points_never_worse_than_a_dense_grid_over_many_points():
     # the search skips sample intervals whose bounding sphere is farther than the best found:
     # over many points and spiky curves (a weight of 50), never a worse answer for it
