@@ -287,6 +287,16 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
   return true;
 }
 
+namespace {
+
+// u nearest the start's turn where it wraps (Surface::periodic_u), as the sphere's
+double wrapped_near(const Surface& s, double u, double start) noexcept {
+  if (!s.periodic_u()) return u;
+  return u + 2.0 * M_PI * detail::round_half_away((start - u) / (2.0 * M_PI));
+}
+
+}  // namespace
+
 // The handle's own pose where the stylus kept at its orientation puts the tip above the
 // surface (a one-sided probe lifted off: the pose error zero, the cost's least): the tip
 // q = p_R + L z_R projected onto the surface locally from uv; false where q is not above
@@ -307,7 +317,7 @@ bool SurfaceProbe::place_lifted(const Pose& target, const JointVector& start, Ei
   const double h = n.dot(q - foot);
   if (!(h > 0.0) || !((q - foot - h * n).norm() <= 1e-10 * length_)) return false;
   theta.resize(dof());
-  theta[0] = uv[0];
+  theta[0] = wrapped_near(*surface_, uv[0], start[0]);
   theta[1] = uv[1];
   theta[2] = h;
   J.resize(6, 6);
@@ -340,7 +350,10 @@ bool SurfaceProbe::place_on_surface(const Pose& target, double w_p, double w_r,
   const Eigen::Vector2d lo(lower()[0], lower()[1]), hi(upper()[0], upper()[1]);
   if (!detail::surface_stylus_newton(*surface_, target.translation(), -target.linear().col(2),
                                      length_, w_p, w_r, lo, hi, uv, u)) {
-    return false;
+    // declined from a contact start: the handle may have lifted the tip off
+    if (!unilateral_ || !(start[2] == 0.0)) return false;
+    uv = Eigen::Vector2d(start[0], start[1]);
+    return place_lifted(target, start, uv, theta, T, J, e);
   }
   surface_->derivatives(uv[0], uv[1], 2, d);
   surface_frame(*surface_, uv[0], uv[1], d, f);
@@ -356,7 +369,7 @@ bool SurfaceProbe::place_on_surface(const Pose& target, double w_p, double w_r,
   Eigen::Vector3d turn;
   const Eigen::Matrix3d R = detail::turn_stylus(target.linear(), u, turn);
   theta.resize(dof());
-  theta[0] = uv[0];
+  theta[0] = wrapped_near(*surface_, uv[0], start[0]);
   theta[1] = uv[1];
   if (unilateral_) theta[2] = 0.0;
   J.resize(6, wrist + 3);

@@ -246,8 +246,10 @@ class SurfaceProbe final : public Mechanism {
   /// tip in contact, Newton's method on the tip's surface parameters and the stylus
   /// direction, with exact second derivatives (the roll about the stylus drops out);
   /// one-sided and lifted off, the handle's own pose (the tip's nearest surface point
-  /// tracked from the start). False where a parameter would leave its bounds or Newton
-  /// does not converge: Gauss-Newton then.
+  /// tracked from the start: "above the surface" is judged there, locally, as Gauss-Newton
+  /// would). False where a parameter would leave its bounds, Newton does not converge and
+  /// the tip is not above the surface, or the KKT sign says lift while the tip is below
+  /// the surface where its nearest point is tracked: Gauss-Newton then.
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
 

@@ -267,6 +267,33 @@ def test_surface_probe_newton_reaches_the_gauss_newton_optimum(rng, weights, uni
     assert lifted == (4 if unilateral else 0), lifted
 
 
+def test_surface_probe_on_a_cylinder_keeps_the_starts_turn():
+    """u wraps on a cylinder (unbounded on the mechanism): lifted off (from a start 1.4 rad
+    away) or in contact, the placement stays on the start's turn, at the handle's own pose
+    and the tip's closed-form height when lifted."""
+    m = vm.SurfaceProbe(vm.Cylinder([0, 0, 0], [0, 0, 1], 0.04), L, unilateral=True)
+    W = np.array([1.0, 1, 1, L * L, L * L, L * L])
+    for turns in (-3, 0, 2):
+        x = np.array([3.0 + 2 * np.pi * turns, 0.01, 0.0, 0.1, -0.2, 0.3])
+        T = m.forward(x)
+        for depth in (-0.005, 0.003):  # pulled 5 mm off, pressed 3 mm in, along the stylus
+            target = T.copy()
+            target[:3, 3] += depth * T[:3, 2]
+            start = x.copy()
+            start[2] = 0.002 if depth < 0 else 0.0
+            if depth < 0:
+                start[0] -= 1.4
+            res = vm.track(m, target, start, W)
+            assert res.iterations == 0  # placed without Gauss-Newton
+            assert abs(res.theta[0] - x[0]) < 0.5, (turns, depth, res.theta[0])
+            if depth < 0:  # the tip's height: its distance from the axis less the radius
+                tip = target[:3, 3] + L * target[:3, 2]
+                assert res.theta[2] == pytest.approx(np.hypot(tip[0], tip[1]) - 0.04, abs=1e-12)
+                assert np.abs(vm.pose_error(target, m.forward(res.theta))).max() <= 1e-12
+            else:
+                assert res.theta[2] == 0.0
+
+
 def test_bad_arguments_name_the_parameter():
     with pytest.raises(ValueError, match="length"):
         vm.SurfaceProbe(vm.Sphere([0, 0, 0], 0.05), -0.1)
