@@ -329,6 +329,10 @@ struct Best {
 
 constexpr int kCandidates = 24;
 
+// a bounding sphere's radius over the largest sampled distance from its centre (a curve's
+// sample interval, a surface's cell: the shape departs from its samples by far less)
+constexpr double kSphereMargin = 1.5;
+
 // f(x) = |S(x) - p|^2 / 2 with its gradient and Hessian, for refine<2>
 struct DistanceToSurface {
   const Surface& s;
@@ -481,7 +485,7 @@ NurbsCurve::NurbsCurve(const Eigen::MatrixX3d& control_points, const Eigen::Vect
     double r = 0.0;
     for (int a = 0; a <= 16; ++a) r = std::max(r, (evaluate(u0 + a * (u1 - u0) / 16.0) - c).norm());
     interval_center_.push_back(c);
-    interval_radius_.push_back(1.5 * r);
+    interval_radius_.push_back(kSphereMargin * r);
   }
 }
 
@@ -727,7 +731,7 @@ NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::
         for (int b = 0; b <= 8; ++b)
           r = std::max(r, (evaluate(u0 + a * (u1 - u0) / 8.0, v0 + b * (v1 - v0) / 8.0) - c).norm());
       cell_center_.push_back(c);
-      cell_radius_.push_back(1.5 * r);
+      cell_radius_.push_back(kSphereMargin * r);
     }
   }
 }

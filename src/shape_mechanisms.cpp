@@ -105,6 +105,21 @@ void surface_frame(const Surface& s, double u, double v, const SurfaceDerivative
   f.w_v = 0.5 * (t1.cross(t1_v) + t2.cross(t2_v) + n.cross(f.n_v));
 }
 
+// A SurfaceProbe's columns of J for u, v (and h where one-sided): sliding the tip at height
+// h turns the wrist's base with the surface frame, `arm` the tip-to-handle vector.
+void surface_columns(const SurfaceDerivatives& d, const SurfaceFrame& f, double h,
+                     const Eigen::Vector3d& arm, bool unilateral, Jacobian& J) noexcept {
+  J.col(0) << d(1, 0) + h * f.n_u + f.w_u.cross(arm), f.w_u;
+  J.col(1) << d(0, 1) + h * f.n_v + f.w_v.cross(arm), f.w_v;
+  if (unilateral) J.col(2) << f.B.col(2), 0.0, 0.0, 0.0;
+}
+
+// u nearest the start's turn where it wraps (Surface::periodic_u)
+double wrapped_near(const Surface& s, double u, double start) noexcept {
+  if (!s.periodic_u()) return u;
+  return u + 2.0 * M_PI * detail::round_half_away((start - u) / (2.0 * M_PI));
+}
+
 std::vector<JointType> probe_kinds(int slides) {
   std::vector<JointType> k(static_cast<size_t>(slides), JointType::kPrismatic);
   for (int i = 0; i < 3; ++i) k.push_back(JointType::kRevolute);
@@ -205,11 +220,7 @@ void SurfaceProbe::forward_jacobian(const double* x, Pose& T, Jacobian& J) const
   const Eigen::Vector3d tip = d(0, 0) + h * n;
   J.resize(6, wrist + 3);
   probe_wrist(f.B, tip, x + wrist, length_, wrist, T, J);
-  // sliding the tip turns the wrist's base with the surface frame
-  const Eigen::Vector3d arm = T.translation() - tip;
-  J.col(0) << d(1, 0) + h * f.n_u + f.w_u.cross(arm), f.w_u;
-  J.col(1) << d(0, 1) + h * f.n_v + f.w_v.cross(arm), f.w_v;
-  if (unilateral_) J.col(2) << n, 0.0, 0.0, 0.0;
+  surface_columns(d, f, h, T.translation() - tip, unilateral_, J);
 }
 
 void SurfaceProbe::seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept {
@@ -269,7 +280,7 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
   if (!((q - c).norm() > 1e-9 * cost.radius)) return false;
   theta.resize(dof());
   // u is periodic: the turn nearest the start's
-  theta[0] = uv[0] + 2.0 * M_PI * detail::round_half_away((start[0] - uv[0]) / (2.0 * M_PI));
+  theta[0] = wrapped_near(*sphere_, uv[0], start[0]);
   theta[1] = uv[1];
   if (unilateral_) {
     // in contact the tip sits exactly on the sphere, the lift-off joint on its bound
@@ -286,16 +297,6 @@ bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector
   e = pose_error(target, T);
   return true;
 }
-
-namespace {
-
-// u nearest the start's turn where it wraps (Surface::periodic_u), as the sphere's
-double wrapped_near(const Surface& s, double u, double start) noexcept {
-  if (!s.periodic_u()) return u;
-  return u + 2.0 * M_PI * detail::round_half_away((start - u) / (2.0 * M_PI));
-}
-
-}  // namespace
 
 // The handle's own pose where the stylus kept at its orientation puts the tip above the
 // surface (a one-sided probe lifted off: the pose error zero, the cost's least): the tip
@@ -324,11 +325,7 @@ bool SurfaceProbe::place_lifted(const Pose& target, const JointVector& start, Ei
   const Eigen::Vector3d tip = foot + h * n;
   detail::wrist_at_tip(f.B, tip, length_, target, target.linear(), Eigen::Vector3d::Zero(),
                        start.data() + 3, 3, theta, T, J, e);
-  // forward_jacobian's columns at height h
-  const Eigen::Vector3d arm = T.translation() - tip;
-  J.col(0) << d(1, 0) + h * f.n_u + f.w_u.cross(arm), f.w_u;
-  J.col(1) << d(0, 1) + h * f.n_v + f.w_v.cross(arm), f.w_v;
-  J.col(2) << n, 0.0, 0.0, 0.0;
+  surface_columns(d, f, h, T.translation() - tip, true, J);
   return true;
 }
 
@@ -375,11 +372,7 @@ bool SurfaceProbe::place_on_surface(const Pose& target, double w_p, double w_r,
   J.resize(6, wrist + 3);
   detail::wrist_at_tip(f.B, d(0, 0), length_, target, R, turn, start.data() + wrist, wrist,
                        theta, T, J, e);
-  // sliding the tip turns the wrist's base with the surface frame (forward_jacobian's)
-  const Eigen::Vector3d arm = T.translation() - d(0, 0);
-  J.col(0) << d(1, 0) + f.w_u.cross(arm), f.w_u;
-  J.col(1) << d(0, 1) + f.w_v.cross(arm), f.w_v;
-  if (unilateral_) J.col(2) << n, 0.0, 0.0, 0.0;
+  surface_columns(d, f, 0.0, T.translation() - d(0, 0), unilateral_, J);
   return true;
 }
 

@@ -292,6 +292,14 @@ def test_surface_probe_on_a_cylinder_keeps_the_starts_turn():
                 assert np.abs(vm.pose_error(target, m.forward(res.theta))).max() <= 1e-12
             else:
                 assert res.theta[2] == 0.0
+    # lifted above u = pi / 2 from a start at u = 3.0: the projection walks the long way
+    # round (to -3 pi / 2, the same point), and the placement takes it on the start's turn
+    x = np.array([np.pi / 2, 0.01, 0.0, 0.0, 0.0, 0.0])
+    target = m.forward(x)
+    target[:3, 3] -= 0.01 * target[:3, 2]
+    res = vm.track(m, target, np.r_[3.0, 0.01, 0.002, 0.0, 0.0, 0.0], W)
+    assert res.iterations == 0 and res.theta[2] > 0.0
+    assert res.theta[0] == pytest.approx(np.pi / 2, abs=1e-9)
 
 
 def test_bad_arguments_name_the_parameter():
