@@ -132,6 +132,9 @@ class NurbsCurve final : public Curve {
                               Eigen::Vector4d (&Cw)[kMaxDerivativeOrder + 1]) const noexcept;
 
   int n_ = 0, p_ = 1;
+  // derivatives_in_span's arithmetic, an instance for the degree p (loops unrolled)
+  void (*kernel_)(const Eigen::Vector4d* taylor, double x, int p, int order,
+                  CurveDerivatives& d) noexcept = nullptr;
   Eigen::Matrix4Xd pw_;  // homogeneous control points (w x, w y, w z, w)
   // per span (span - p), p + 1 coefficients C_a of the homogeneous curve, a polynomial
   // there: sum C_a (u - u_mid)^a, u_mid the span's middle; zero for an empty span
@@ -186,6 +189,9 @@ class NurbsSurface final : public Surface {
                                                    [kMaxDerivativeOrder + 1]) const noexcept;
 
   int nu_ = 0, nv_ = 0, p_ = 1, q_ = 1;
+  // derivatives_in_spans' arithmetic, an instance for the degrees (p, q) (loops unrolled)
+  void (*kernel_)(const Eigen::Vector4d* taylor, double x, double y, int p, int q, int order,
+                  SurfaceDerivatives& d) noexcept = nullptr;
   Eigen::Matrix4Xd pw_;  // column i * nv + j
   // per span pair (su - p) * (nv - q) + (sv - q), (p + 1)(q + 1) coefficients C_ab (index
   // a * (q + 1) + b) of the homogeneous surface, a polynomial there: sum C_ab (u - u_mid)^a

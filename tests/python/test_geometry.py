@@ -113,6 +113,30 @@ def test_nurbs_surface_matches_geomdl(p, q):
             np.testing.assert_allclose(s.evaluate(u, v), expected[0, 0], rtol=1e-10, atol=1e-10)
 
 
+def test_every_degree_and_order_matches_geomdl():
+    # the evaluation has an instance per degree up to 3 (5 for curves) and per order up to
+    # 2, and one for the rest: every pair of degrees 1-4 (curves 1-6) and orders 0-3
+    rng = np.random.default_rng(5)
+    for p in range(1, 7):
+        P, w, U = random_curve(rng, p)
+        c, ref = vm.NurbsCurve(P, w, U, p), geomdl_curve(P, w, U, p)
+        for u in rng.uniform(0, 1, 3):
+            for order in range(4):
+                expected = np.array(ref.derivatives(float(u), order))
+                np.testing.assert_allclose(c.derivatives(u, order), expected, rtol=1e-10,
+                                           atol=1e-10, err_msg=f"curve degree {p} order {order}")
+    for p in range(1, 5):
+        for q in range(1, 5):
+            P, w, Uu, Uv = random_surface(rng, p, q)
+            s, ref = vm.NurbsSurface(P, w, Uu, Uv, p, q), geomdl_surface(P, w, Uu, Uv, p, q)
+            for u, v in rng.uniform(0, 1, (2, 2)):
+                for order in range(4):
+                    expected = np.array(ref.derivatives(float(u), float(v), order))
+                    np.testing.assert_allclose(
+                        s.derivatives(u, v, order), expected, rtol=1e-10, atol=1e-10,
+                        err_msg=f"surface degrees ({p}, {q}) order {order}")
+
+
 @pytest.mark.parametrize("p", [3, 7])
 def test_nurbs_far_from_zero_and_wide_knots_match_geomdl(p):
     # evaluation runs from each span's Taylor coefficients about its middle: knots 1000 + 250
