@@ -467,6 +467,10 @@ struct Best {
 
 constexpr int kCandidates = 24;
 
+// NurbsSurface::closest_point keeps the samples' distances on the stack up to this many
+// samples (8 KiB)
+constexpr int kKeptSamples = 1024;
+
 // a bounding sphere's radius over the largest sampled distance from its centre (a curve's
 // sample interval, a surface's cell: the shape departs from its samples by far less)
 constexpr double kSphereMargin = 1.5;
@@ -920,8 +924,13 @@ void NurbsSurface::derivatives_in_spans(double u, double v, int su, int sv, int 
 Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
                                             Eigen::Vector3d& point) const noexcept {
   const int mu = static_cast<int>(sample_u_.size()), mv = static_cast<int>(sample_v_.size());
+  // the samples' squared distances from p, kept on the stack where they fit (each is read
+  // by up to four cells' tests and nine samples' local-minimum tests)
+  double kept[kKeptSamples];
+  const bool keep = mu * mv <= kKeptSamples;
   auto d2 = [&](int i, int j) {
-    return (sample_p_[static_cast<size_t>(i) * mv + j] - p).squaredNorm();
+    const size_t k = static_cast<size_t>(i) * mv + j;
+    return keep ? kept[k] : (sample_p_[k] - p).squaredNorm();
   };
   // the gradient's parts at sample (i, j): from the right in u / from above in v, or (a
   // cell's far corner, an edge interval's end) from the left / from below
@@ -950,8 +959,14 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
   // The nearest sample bounds the least distance from above (the refinement from it, the
   // first, descends), so a cell farther than it holds no minimum that counts: only the
   // cells within it are searched.
-  double near2 = kInf;
-  for (const Eigen::Vector3d& s : sample_p_) near2 = std::min(near2, (s - p).squaredNorm());
+  double least[4] = {kInf, kInf, kInf, kInf};  // (four chains of minima overlap)
+  for (size_t k = 0; k < sample_p_.size(); ++k) {
+    const double e = (sample_p_[k] - p).squaredNorm();
+    if (keep) kept[k] = e;
+    least[k % 4] = std::min(least[k % 4], e);
+  }
+  const double near2 = std::min(std::min(least[0], least[1]), std::min(least[2], least[3]));
+  const double near = std::sqrt(near2);
   // Candidates (index i * mv + j, the start), in those cells: (1) samples that are discrete
   // local minima of the distance; (2) cells whose corners' gradients change sign in u and
   // in v (a minimum inside), started at the nearest corner; (3) along the four edges,
@@ -978,8 +993,10 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
   };
   for (int i = 0; i + 1 < mu; ++i) {
     for (int j = 0; j + 1 < mv; ++j) {
-      const double lb = cell_bound(i, j);
-      if (lb > 0.0 && lb * lb > near2) continue;
+      // the cell's sphere farther than the nearest sample: |c - p| - radius > near
+      const size_t cell = static_cast<size_t>(i) * (mv - 1) + j;
+      const double reach = cell_radius_[cell] + near;
+      if ((cell_center_[cell] - p).squaredNorm() > reach * reach) continue;
       for (int a = i; a <= i + 1; ++a)
         for (int b = j; b <= j + 1; ++b) local_min(a, b);
       double umin = kInf, umax = -kInf, vmin = kInf, vmax = -kInf, dmin = kInf;
