@@ -223,7 +223,7 @@ template <int P, int ND>
 VIRTMECH_FLATTEN void span_arithmetic(const Eigen::Vector4d* C, double x, int p_given,
                                       int nd_given, CurveDerivatives& out) noexcept {
   constexpr int kN = ND >= 0 ? ND + 1 : kD;  // orders held
-  const int p = P >= 0 ? P : p_given, nd = ND >= 0 ? ND : nd_given;
+  const int p = P >= 0 ? P : p_given, nd = ND >= 0 ? ND : std::min(nd_given, kN - 1);
   Eigen::Vector4d Cw[kN];
   VIRTMECH_UNROLL for (int k = 0; k <= nd; ++k) {
     if (k > p) {
@@ -273,11 +273,15 @@ using SpanPairKernel = void (*)(const Eigen::Vector4d*, double, double, int, int
 // degrees at construction, the usual degrees and orders as constants; -1: as given.
 template <int P, int Q, int ND>
 VIRTMECH_FLATTEN void span_pair_arithmetic(const Eigen::Vector4d* C, double x, double y,
-                                                   int p_given, int q_given, int nd_given,
-                                                   SurfaceDerivatives& out) noexcept {
-  constexpr int kTu = (P >= 0 ? P : kMaxNurbsDegree) + 1, kTv = (Q >= 0 ? Q : kMaxNurbsDegree) + 1;
+                                           int p_given, int q_given, int nd_given,
+                                           SurfaceDerivatives& out) noexcept {
+  constexpr int kTu = (P >= 0 ? P : kMaxNurbsDegree) + 1;
+  constexpr int kTv = (Q >= 0 ? Q : kMaxNurbsDegree) + 1;
   constexpr int kN = ND >= 0 ? ND + 1 : kD;  // orders held
-  const int p = P >= 0 ? P : p_given, q = Q >= 0 ? Q : q_given, nd = ND >= 0 ? ND : nd_given;
+  // (given values kept within the arrays for the compiler, which cannot see that they are)
+  const int p = P >= 0 ? P : std::min(p_given, kTu - 1);
+  const int q = Q >= 0 ? Q : std::min(q_given, kTv - 1);
+  const int nd = ND >= 0 ? ND : std::min(nd_given, kN - 1);
   const int du = std::min(nd, p), dv = std::min(nd, q);
   Eigen::Vector4d T[kTu][kTv];  // T[a][l]: d^l/dv^l of sum_b C_ab y^b (l <= dv)
   VIRTMECH_UNROLL for (int a = 0; a <= p; ++a) {
@@ -307,7 +311,9 @@ VIRTMECH_FLATTEN void span_pair_arithmetic(const Eigen::Vector4d* C, double x, d
       VIRTMECH_UNROLL for (int i = 1; i <= k; ++i) {
         w -= kBin.c[k][i] * Sw[i][0][3] * out(k - i, l);
         Eigen::Vector3d w2 = Eigen::Vector3d::Zero();
-        VIRTMECH_UNROLL for (int j = 1; j <= l; ++j) w2 += kBin.c[l][j] * Sw[i][j][3] * out(k - i, l - j);
+        VIRTMECH_UNROLL for (int j = 1; j <= l; ++j) {
+          w2 += kBin.c[l][j] * Sw[i][j][3] * out(k - i, l - j);
+        }
         w -= kBin.c[k][i] * w2;
       }
       out(k, l) = w / Sw[0][0][3];
