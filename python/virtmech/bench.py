@@ -256,12 +256,15 @@ def numpy_reference(case: Case, reference: Any, q_warm: np.ndarray, dq_warm: np.
 def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
                        mujoco_alone: Any = None) -> tuple[list[dict[str, Any]], str]:
     """Real-time factor of each shipped scenario, if the simulation is installed: simulated
-    seconds per wall second of the closed loop (`SimResult.wall_time_s`, median of `repeats`
-    runs); `setup_and_run_wall_time_s` adds building the MJCF and solving the start pose;
-    `overhead_vs_mujoco`: that wall time over `mujoco_alone(result, repeats)` (default
-    `mujoco_alone_s`); `control_time_s`: of that run's wall time, the controller's (or
-    the set's) step, `control_us_per_cycle` the same per control cycle, `derived_time_s`
-    the log's derived columns (distances from the shape, ...), and
+    seconds per wall second of the closed loop (`SimResult.wall_time_s`); `repeats` runs,
+    each followed by MuJoCo alone on the same steps (`mujoco_alone(result, 1)`, default
+    `mujoco_alone_s`), so that both sides of each ratio are timed within moments of each
+    other (a machine that speeds up or slows down over the runs changes both); the figures
+    are those of the pair of median ratio: `overhead_vs_mujoco` its wall time over its
+    MuJoCo alone (`mujoco_alone_s`); `setup_and_run_wall_time_s` (median) adds building the
+    MJCF and solving the start pose; `control_time_s`: of that run's wall time, the
+    controller's (or the set's) step, `control_us_per_cycle` the same per control cycle,
+    `derived_time_s` the log's derived columns (distances from the shape, ...), and
     `loop_overhead_vs_mujoco` the rest of the wall time (the simulation around the
     rendering: sensors, the hand, the log rows) over MuJoCo alone. Returns the figures and
     a note."""
@@ -282,17 +285,18 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
                 t0 = time.perf_counter()
                 result = vsim.run(scenario, seed=0, progress=False)
                 total = time.perf_counter() - t0
-                runs.append((float(result.wall_time_s), total, float(result.control_time_s),
+                alone = float((mujoco_alone or mujoco_alone_s)(result, 1))
+                runs.append((float(result.wall_time_s) / alone, float(result.wall_time_s),
+                             alone, total, float(result.control_time_s),
                              float(result.derived_time_s)))
             sim_s = float(result.sim_time_s)
-            # the run of median wall time, with its own controller and derived times (the
+            # the pair of median ratio, with its run's own controller and derived times (the
             # parts of one run, so that their difference is that run's rest)
-            wall_s, _, control_s, derived_s = sorted(runs)[(len(runs) - 1) // 2]
-            total_s = float(np.median([r[1] for r in runs]))
+            _, wall_s, mujoco_s, _, control_s, derived_s = sorted(runs)[(len(runs) - 1) // 2]
+            total_s = float(np.median([r[3] for r in runs]))
         except Exception as exc:
             notes.append(f"{name}: {type(exc).__name__}: {exc}")
             continue
-        mujoco_s = (mujoco_alone or mujoco_alone_s)(result, repeats)
         out.append({"scenario": name, "realtime_factor": sim_s / wall_s,
                     "sim_time_s": sim_s, "wall_time_s": wall_s,
                     "setup_and_run_wall_time_s": total_s,

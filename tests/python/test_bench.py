@@ -110,8 +110,10 @@ def test_main_rejects_a_bad_cycle_count():
 
 def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     # a stand-in simulation: 2 s simulated (2001 cycles) in 0.07, 0.04 and 0.05 s of wall
-    # time, of which 12, 20 and 25 ms in the controller and 4, 2 and 1 ms deriving columns
-    # (the median run's, not the medians of each: the parts of one run)
+    # time, of which 12, 20 and 25 ms in the controller and 4, 2 and 1 ms deriving columns,
+    # each run followed by MuJoCo alone in 0.05, 0.02 and 0.04 s: ratios 1.4, 2.0 and 1.25,
+    # the figures are the pair of median ratio's (the first run's; the medians of each side,
+    # 0.05 / 0.04, would give 1.25), its parts that run's
     scen = types.ModuleType("virtmech.scenarios")
     scen.names = lambda: ["omni_probe_table"]
     scen.load = lambda name: {"name": name}
@@ -131,15 +133,23 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
 
     monkeypatch.setattr(virtmech, "scenarios", scen, raising=False)
     monkeypatch.setattr(virtmech, "sim", sim, raising=False)
-    figures, note = bench.simulation_figures(mujoco_alone=lambda result, repeats: 0.04)
+    alone = iter([0.05, 0.02, 0.04])
+    calls = []
+
+    def mujoco_alone(result, repeats):
+        calls.append(repeats)
+        return next(alone)
+
+    figures, note = bench.simulation_figures(mujoco_alone=mujoco_alone)
     assert note == ""
+    assert calls == [1, 1, 1]  # one replay after each run
     figures[0].pop("setup_and_run_wall_time_s")  # wall time around the stand-in: not asserted
-    # the run of median wall time, and that run's controller and derived times
-    assert figures == [{"scenario": "omni_probe_table", "realtime_factor": pytest.approx(40.0),
-                        "sim_time_s": 2.0, "wall_time_s": 0.05, "engine": "compiled",
-                        "mujoco_alone_s": 0.04, "overhead_vs_mujoco": pytest.approx(1.25),
-                        "control_time_s": pytest.approx(0.025),
-                        "control_us_per_cycle": pytest.approx(0.025 / 2001 * 1e6),
-                        "derived_time_s": pytest.approx(0.001),
-                        "loop_overhead_vs_mujoco": pytest.approx((0.05 - 0.025 - 0.001) / 0.04),
+    assert figures == [{"scenario": "omni_probe_table",
+                        "realtime_factor": pytest.approx(2.0 / 0.07), "sim_time_s": 2.0,
+                        "wall_time_s": 0.07, "engine": "compiled",
+                        "mujoco_alone_s": 0.05, "overhead_vs_mujoco": pytest.approx(1.4),
+                        "control_time_s": pytest.approx(0.012),
+                        "control_us_per_cycle": pytest.approx(0.012 / 2001 * 1e6),
+                        "derived_time_s": pytest.approx(0.004),
+                        "loop_overhead_vs_mujoco": pytest.approx((0.07 - 0.012 - 0.004) / 0.05),
                         "runs": 3}]
