@@ -386,7 +386,9 @@ double refine(Eigen::Matrix<double, N, 1>& x, const Eigen::Matrix<double, N, 1>&
       lmin = lmax = Hf(0, 0);
     } else {
       const double m = 0.5 * (Hf(0, 0) + Hf(N - 1, N - 1));
-      const double q = std::hypot(0.5 * (Hf(0, 0) - Hf(N - 1, N - 1)), Hf(0, N - 1));
+      // (a plain square root: the entries are far from overflow and underflow)
+      const double h = 0.5 * (Hf(0, 0) - Hf(N - 1, N - 1));
+      const double q = std::sqrt(h * h + Hf(0, N - 1) * Hf(0, N - 1));
       lmin = m - q;
       lmax = m + q;
     }
