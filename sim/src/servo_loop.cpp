@@ -156,7 +156,7 @@ void ServoLoop::init() {
   jacp_.assign(3 * size_t(n_), 0.0);
   ring_.assign(size_t(s_.delay_cycles + 1) * size_t(n_), 0.0);
   for (JointVector* v : {&gs_, &tau_g_, &held_, &prev_, &dqf_, &q_, &dq_, &qm_, &cmd_,
-                         &q_cycle_, &dq_cycle_, &received_, &sv_}) {
+                         &q_cycle_, &dq_cycle_, &received_, &sv_, &hand_tau_}) {
     v->setZero(n_);
   }
 }
@@ -262,7 +262,8 @@ void ServoLoop::cycle(long k, const double* plan, const double* noise, bool drop
       wrench0 = W;
     }
     Eigen::Map<Eigen::VectorXd> qfrc(d_->qfrc_applied, n_);
-    qfrc.noalias() = CinvT_ * (J_.transpose() * W);
+    hand_tau_.noalias() = J_.transpose() * W;  // the hand's wrench on the device's joints
+    qfrc.noalias() = CinvT_ * hand_tau_;
     mj_step2(m_, d_);
   }
   write_row(t, T_h, tw0, wrench0, plan, row);

@@ -135,7 +135,7 @@ class ServoLoop {
   JointVector c0_;
   std::vector<double> jacp_, ring_;
   JointVector gs_, tau_g_, held_, prev_, dqf_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_,
-      received_, sv_;
+      received_, sv_, hand_tau_;
   long reads_ = 0;
   double control_time_s_ = 0.0;
   bool attached_ = true;
