@@ -477,6 +477,38 @@ def test_surface_closest_points_never_worse_than_a_dense_grid_over_many_points()
         assert np.all(d <= ref + 1e-12), trial
 
 
+def test_surface_closest_point_does_not_depend_on_the_knots():
+    # knot insertion (geomdl) changes the parametrisation, the samples and the cells' bounds,
+    # not the shape: 2 x 2 spans (17 x 17 samples, their distances kept on the stack) and
+    # the same surface in 8 x 8 spans (65 x 65 samples, more than are kept: recomputed) give
+    # the same nearest distances
+    from geomdl import operations
+
+    rng = np.random.default_rng(21)
+    P = np.concatenate([np.stack(np.meshgrid(*[np.linspace(0, 1, 5)] * 2, indexing="ij"), -1),
+                        rng.uniform(-0.3, 0.3, (5, 5, 1))], axis=-1)
+    w = rng.uniform(0.5, 2.0, (5, 5))
+    U = np.array([0, 0, 0, 0, 0.5, 1, 1, 1, 1.0])
+    coarse = vm.NurbsSurface(P, w, U, U, 3, 3)
+    ref = geomdl_surface(P, w, U, U, 3, 3)
+    for k in [0.125, 0.25, 0.375, 0.625, 0.75, 0.875]:
+        operations.insert_knot(ref, [k, k], [1, 1])
+    nu, nv = ref.ctrlpts_size_u, ref.ctrlpts_size_v
+    assert (nu, nv) == (11, 11)
+    Pw = np.array(ref.ctrlptsw).reshape(nu, nv, 4)
+    fine = vm.NurbsSurface(Pw[..., :3] / Pw[..., 3:], Pw[..., 3], ref.knotvector_u,
+                           ref.knotvector_v, 3, 3)
+    u, v = rng.uniform(0, 1, (2, 40))
+    np.testing.assert_allclose([fine.evaluate(a, b) for a, b in zip(u, v)],
+                               [coarse.evaluate(a, b) for a, b in zip(u, v)], atol=1e-12)
+    X = rng.uniform([-0.2, -0.2, -0.5], [1.2, 1.2, 0.5], (200, 3))
+    _, near_coarse, _ = coarse.closest_points(X)
+    _, near_fine, _ = fine.closest_points(X)
+    d_coarse = np.linalg.norm(near_coarse - X, axis=1)
+    d_fine = np.linalg.norm(near_fine - X, axis=1)
+    np.testing.assert_allclose(d_fine, d_coarse, rtol=0, atol=1e-9)
+
+
 def test_surface_closest_point_beside_a_crease_takes_the_nearer_face():
     # a V-shaped valley of two planes meeting at u = 0.5 (degree 1, an interior knot), a
     # point just left of its bottom: the nearest sample is on the crease, and a start there
