@@ -203,13 +203,17 @@ int interior_multiplicity(const Eigen::VectorXd& U, int n, int p) noexcept {
 
 // ---- a surface span pair's derivatives ---------------------------------------------
 
-// GCC and Clang: unroll the loops over degrees and orders, and inline every call within
-// the function (Eigen's small-vector expressions) so that they unroll with it
-#if defined(__GNUC__)
+// GCC (8 and later for the pragma) and Clang: unroll the loops over degrees and orders, and
+// inline every call within the function (Eigen's small-vector expressions) so that they
+// unroll with it
+#if defined(__clang__) || (defined(__GNUC__) && __GNUC__ >= 8)
 #define VIRTMECH_UNROLL _Pragma("GCC unroll 8")
-#define VIRTMECH_FLATTEN __attribute__((flatten))
 #else
 #define VIRTMECH_UNROLL
+#endif
+#if defined(__GNUC__)
+#define VIRTMECH_FLATTEN __attribute__((flatten))
+#else
 #define VIRTMECH_FLATTEN
 #endif
 
@@ -223,7 +227,8 @@ template <int P, int ND>
 VIRTMECH_FLATTEN void span_arithmetic(const Eigen::Vector4d* C, double x, int p_given,
                                       int nd_given, CurveDerivatives& out) noexcept {
   constexpr int kN = ND >= 0 ? ND + 1 : kD;  // orders held
-  const int p = P >= 0 ? P : p_given, nd = ND >= 0 ? ND : std::min(nd_given, kN - 1);
+  const int p = P >= 0 ? P : std::min(p_given, kMaxNurbsDegree);
+  const int nd = ND >= 0 ? ND : std::min(nd_given, kN - 1);
   Eigen::Vector4d Cw[kN];
   VIRTMECH_UNROLL for (int k = 0; k <= nd; ++k) {
     if (k > p) {

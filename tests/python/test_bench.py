@@ -119,12 +119,15 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     scen.load = lambda name: {"name": name}
     sim = types.ModuleType("virtmech.sim")
     walls = iter([(0.07, 0.012, 0.004), (0.04, 0.02, 0.002), (0.05, 0.025, 0.001)])
+    events = []  # ("run", result) and ("alone", result, repeats), in order
 
     def run(scenario, seed=None, progress=False):
         wall, control, derived = next(walls)
-        return types.SimpleNamespace(sim_time_s=2.0, wall_time_s=wall, control_time_s=control,
-                                     derived_time_s=derived, n_cycles=2001,
-                                     info={"physics": {"engine": "compiled"}})
+        result = types.SimpleNamespace(sim_time_s=2.0, wall_time_s=wall, control_time_s=control,
+                                       derived_time_s=derived, n_cycles=2001,
+                                       info={"physics": {"engine": "compiled"}})
+        events.append(("run", result))
+        return result
 
     sim.run = run
     monkeypatch.setitem(sys.modules, "virtmech.scenarios", scen)
@@ -134,15 +137,17 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     monkeypatch.setattr(virtmech, "scenarios", scen, raising=False)
     monkeypatch.setattr(virtmech, "sim", sim, raising=False)
     alone = iter([0.05, 0.02, 0.04])
-    calls = []
 
     def mujoco_alone(result, repeats):
-        calls.append(repeats)
+        events.append(("alone", result, repeats))
         return next(alone)
 
     figures, note = bench.simulation_figures(mujoco_alone=mujoco_alone)
     assert note == ""
-    assert calls == [1, 1, 1]  # one replay after each run
+    # each run followed by one replay of that run's own result
+    assert [e[0] for e in events] == ["run", "alone"] * 3
+    for k in range(0, 6, 2):
+        assert events[k + 1][1] is events[k][1] and events[k + 1][2] == 1
     figures[0].pop("setup_and_run_wall_time_s")  # wall time around the stand-in: not asserted
     assert figures == [{"scenario": "omni_probe_table",
                         "realtime_factor": pytest.approx(2.0 / 0.07), "sim_time_s": 2.0,

@@ -115,22 +115,22 @@ def test_nurbs_surface_matches_geomdl(p, q):
 
 def test_every_degree_and_order_matches_geomdl():
     # the evaluation has an instance per degree up to 3 (5 for curves) and per order up to
-    # 2, and one for the rest: every pair of degrees 1-4 (curves 1-6) and orders 0-3
+    # 2, and one for the rest: every degree (pair) 1-7 and every order 0-7
     rng = np.random.default_rng(5)
-    for p in range(1, 7):
+    for p in range(1, 8):
         P, w, U = random_curve(rng, p)
         c, ref = vm.NurbsCurve(P, w, U, p), geomdl_curve(P, w, U, p)
-        for u in rng.uniform(0, 1, 3):
-            for order in range(4):
+        for u in rng.uniform(0, 1, 2):
+            for order in range(8):
                 expected = np.array(ref.derivatives(float(u), order))
                 np.testing.assert_allclose(c.derivatives(u, order), expected, rtol=1e-10,
                                            atol=1e-10, err_msg=f"curve degree {p} order {order}")
-    for p in range(1, 5):
-        for q in range(1, 5):
+    for p in range(1, 8):
+        for q in range(1, 8):
             P, w, Uu, Uv = random_surface(rng, p, q)
             s, ref = vm.NurbsSurface(P, w, Uu, Uv, p, q), geomdl_surface(P, w, Uu, Uv, p, q)
-            for u, v in rng.uniform(0, 1, (2, 2)):
-                for order in range(4):
+            for u, v in rng.uniform(0, 1, (1, 2)):
+                for order in range(8):
                     expected = np.array(ref.derivatives(float(u), float(v), order))
                     np.testing.assert_allclose(
                         s.derivatives(u, v, order), expected, rtol=1e-10, atol=1e-10,
@@ -479,9 +479,9 @@ def test_surface_closest_points_never_worse_than_a_dense_grid_over_many_points()
 
 def test_surface_closest_point_does_not_depend_on_the_knots():
     # knot insertion (geomdl) changes the parametrisation, the samples and the cells' bounds,
-    # not the shape: 2 x 2 spans (17 x 17 samples, their distances kept on the stack) and
-    # the same surface in 8 x 8 spans (65 x 65 samples, more than are kept: recomputed) give
-    # the same nearest distances
+    # not the shape: 2 x 2 spans (17 x 17 samples, their distances kept on the stack: at
+    # most 1024 are) and the same surface in 8 x 8 spans (65 x 65 samples, more than are
+    # kept: recomputed) give the same nearest distances
     from geomdl import operations
 
     rng = np.random.default_rng(21)
@@ -507,6 +507,12 @@ def test_surface_closest_point_does_not_depend_on_the_knots():
     d_coarse = np.linalg.norm(near_coarse - X, axis=1)
     d_fine = np.linalg.norm(near_fine - X, axis=1)
     np.testing.assert_allclose(d_fine, d_coarse, rtol=0, atol=1e-9)
+    # and neither is worse than a dense grid of the shape (geomdl's points: the reference
+    # evaluates independently of the search's samples)
+    ref.sample_size = 101
+    pts = np.array(ref.evalpts)
+    d_grid = np.linalg.norm(pts[None, :, :] - X[:, None, :], axis=2).min(axis=1)
+    assert np.all(d_coarse <= d_grid + 1e-12) and np.all(d_fine <= d_grid + 1e-12)
 
 
 def test_surface_closest_point_beside_a_crease_takes_the_nearer_face():
