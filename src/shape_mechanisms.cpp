@@ -65,8 +65,10 @@ struct SurfaceFrame {
   Eigen::Vector3d w_u, w_v, n_u, n_v;
 };
 
-void surface_frame(const Surface& s, double u, double v, const SurfaceDerivatives& d,
-                   SurfaceFrame& f) noexcept {
+// The frame B alone, from S's first derivatives in d (order 1 suffices); false at a
+// degenerate point, where it is completed from the surface's own normal.
+bool surface_basis(const Surface& s, double u, double v, const SurfaceDerivatives& d,
+                   Eigen::Matrix3d& B) noexcept {
   const Eigen::Vector3d& Su = d(1, 0);
   const Eigen::Vector3d& Sv = d(0, 1);
   const Eigen::Vector3d m = Su.cross(Sv);
@@ -77,17 +79,28 @@ void surface_frame(const Surface& s, double u, double v, const SurfaceDerivative
     const Eigen::Vector3d n = s.normal(u, v);
     Eigen::Vector3d t1 = Su - Su.dot(n) * n;
     t1 = t1.norm() > kTiny ? Eigen::Vector3d(t1.normalized()) : any_orthogonal(n);
-    f.B << t1, n.cross(t1), n;
+    B << t1, n.cross(t1), n;
+    return false;
+  }
+  const Eigen::Vector3d n = m / mn;
+  const Eigen::Vector3d t1 = Su / sun;
+  B << t1, n.cross(t1), n;
+  return true;
+}
+
+void surface_frame(const Surface& s, double u, double v, const SurfaceDerivatives& d,
+                   SurfaceFrame& f) noexcept {
+  if (!surface_basis(s, u, v, d, f.B)) {
     f.w_u.setZero();
     f.w_v.setZero();
     f.n_u.setZero();
     f.n_v.setZero();
     return;
   }
-  const Eigen::Vector3d n = m / mn;
-  const Eigen::Vector3d t1 = Su / sun;
-  const Eigen::Vector3d t2 = n.cross(t1);
-  f.B << t1, t2, n;
+  const Eigen::Vector3d& Su = d(1, 0);
+  const Eigen::Vector3d& Sv = d(0, 1);
+  const double mn = Su.cross(Sv).norm(), sun = Su.norm();
+  const Eigen::Vector3d t1 = f.B.col(0), t2 = f.B.col(1), n = f.B.col(2);
   // derivatives of the unit vectors: d(x / |x|) = (I - x^ x^T) dx / |x|
   const auto unit_rate = [](const Eigen::Vector3d& e, double norm, const Eigen::Vector3d& dx) {
     return Eigen::Vector3d((dx - e.dot(dx) * e) / norm);
@@ -340,9 +353,9 @@ bool SurfaceProbe::place_on_surface(const Pose& target, double w_p, double w_r,
     return true;
   }
   SurfaceDerivatives d;
-  surface_->derivatives(uv[0], uv[1], 2, d);
+  surface_->derivatives(uv[0], uv[1], 1, d);  // the start's frame, for its stylus direction
   SurfaceFrame f;
-  surface_frame(*surface_, uv[0], uv[1], d, f);
+  surface_basis(*surface_, uv[0], uv[1], d, f.B);
   Eigen::Vector3d u = detail::wrist_direction(f.B, start.data() + wrist);  // tip to handle
   const Eigen::Vector2d lo(lower()[0], lower()[1]), hi(upper()[0], upper()[1]);
   if (!detail::surface_stylus_newton(*surface_, target.translation(), -target.linear().col(2),
