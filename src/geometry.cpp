@@ -3,7 +3,6 @@
 #include "virtmech/geometry.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -201,7 +200,7 @@ int interior_multiplicity(const Eigen::VectorXd& U, int n, int p) noexcept {
   return most;
 }
 
-// ---- a surface span pair's derivatives ---------------------------------------------
+// ---- a curve span's and a surface span pair's derivatives ----------------------------
 
 // GCC (8 and later for the pragma) and Clang: unroll the loops over degrees and orders, and
 // inline every call within the function (Eigen's small-vector expressions) so that they
