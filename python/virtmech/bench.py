@@ -343,6 +343,7 @@ def mujoco_alone_s(result: Any, repeats: int = 3) -> float:
     xfrc[:, hand] = result.cols("fhx", "fhy", "fhz", "mhx", "mhy", "mhz")
     control = np.repeat(np.hstack([ctrl, xfrc.reshape(result.n_cycles, -1)]), nsub, axis=0)
     control_spec = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+
     def replay() -> None:
         rollout.rollout(model, data, state0, control[None], control_spec=int(control_spec))
 

@@ -158,3 +158,31 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
                         "derived_time_s": pytest.approx(0.004),
                         "loop_overhead_vs_mujoco": pytest.approx((0.07 - 0.012 - 0.004) / 0.05),
                         "runs": 3}]
+
+
+def test_mujoco_alone_replays_once_untimed_then_times_each_replay(monkeypatch):
+    # a real run's replay, MuJoCo's rollout and the clock observed: the first replay is not
+    # timed, the figure is the median of the timed ones (here 1 and 3 clock units: 2)
+    pytest.importorskip("mujoco")
+    from mujoco import rollout
+
+    from virtmech import scenarios, sim
+
+    result = sim.run(scenarios.load("planar3r-fig10"), seed=0, progress=False)
+    events = []
+    real_rollout = rollout.rollout
+
+    def counted_rollout(*args, **kwargs):
+        events.append("rollout")
+        return real_rollout(*args, **kwargs)
+
+    clock = iter([0.0, 1.0, 10.0, 13.0])
+
+    def fake_clock():
+        events.append("clock")
+        return next(clock)
+
+    monkeypatch.setattr(rollout, "rollout", counted_rollout)
+    monkeypatch.setattr(bench.time, "perf_counter", fake_clock)
+    assert bench.mujoco_alone_s(result, 2) == 2.0
+    assert events == ["rollout", "clock", "rollout", "clock", "clock", "rollout", "clock"]
