@@ -691,6 +691,16 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
   if (!inside(x) || !(w_p > 0.0)) return false;
   u.normalize();
   double last = 0.0;  // the last full Newton step (scaled), 0 if the last was not one
+  // after a full Newton step: the cost before it and the position error its linear model
+  // predicted (for the second-order correction below); after a correction, the point it
+  // corrected and its cost
+  double f_before = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d r_model = Eigen::Vector3d::Zero();
+  int corrections = 0;
+  bool corrected = false;
+  VecN x_uncorrected = x;
+  Eigen::Vector3d u_uncorrected = u;
+  double f_uncorrected = 0.0;
   const auto cost = [&](const VecN& y, const Eigen::Vector3d& u_) {
     Eigen::Vector3d P;
     D1 d1;
@@ -708,6 +718,55 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
     const Eigen::Vector3d r = P + L * u - p_R;  // the handle's position error
     double ang, h, dh;
     acos_squared_terms(u.dot(u_R), u.cross(u_R).norm(), ang, h, dh);
+    const double f_here = w_p * r.squaredNorm() + w_r * ang * ang;
+    if (corrected) {  // the correction kept only where it lowered the cost
+      corrected = false;
+      if (f_here > f_uncorrected) {
+        x = x_uncorrected;
+        u = u_uncorrected;
+        --it;
+        continue;
+      }
+    }
+    // A full Newton step that raised the cost has left the valley of the position term, the
+    // stiff one: on a surface with w_r << w_p L^2 (a nearest placement, the rotation
+    // weighted 1e-6) and the handle pressed in, the tip may sit anywhere on the circle where
+    // the stylus reaches the surface, a narrow, curved valley, where the quadratic model's
+    // error along a long step (w_p times the surface's and the sphere's curvature)
+    // outweighs the angle term's gain: the Maratos effect. The second-order correction
+    // brings the position error back to what the step's linear model predicted, by the
+    // least change of the parameters and the stylus: (dx, du) = -A^T (A A^T)^-1 (r -
+    // r_model), A = [d1, L E]; it is kept where it lowers the cost (at most 12 of them,
+    // each costing one or two evaluations more). On a curve (N = 1) A is square: the
+    // position term's minimum is a point, there is no valley, and no correction is made.
+    if (N == 2 && f_here > f_before && corrections < 12) {
+      ++corrections;
+      Eigen::Matrix<double, 3, 2> E;
+      E.col(0) = any_orthogonal(u);
+      E.col(1) = u.cross(E.col(0));
+      Eigen::Matrix<double, 3, M> A;
+      A.template leftCols<N>() = d1;
+      A.template rightCols<2>() = L * E;
+      const Eigen::Matrix3d AAt = A * A.transpose();
+      const Eigen::LLT<Eigen::Matrix3d> llt(AAt);
+      if (llt.info() == Eigen::Success) {
+        const VecM c = -A.transpose() * llt.solve(Eigen::Vector3d(r - r_model));
+        const VecN x_c = x + c.template head<N>();
+        if (c.allFinite() && inside(x_c)) {
+          x_uncorrected = x;
+          u_uncorrected = u;
+          f_uncorrected = f_here;
+          corrected = true;
+          x = x_c;
+          const Eigen::Vector3d w = E * c.template tail<2>();
+          u = (u + w).normalized();
+          f_before = std::numeric_limits<double>::infinity();
+          --it;
+          continue;
+        }
+      }
+    }
+    f_before = std::numeric_limits<double>::infinity();
     // the gradient and Hessian in u as a function on R^3, then on the sphere
     const Eigen::Vector3d g_u = 2.0 * w_p * L * r - 2.0 * w_r * h * u_R;
     Eigen::Matrix<double, 3, 2> E;
@@ -771,6 +830,8 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
     Eigen::Vector3d u_new;
     if (newton && scale == 1.0) {
       moved_to(1.0, x_new, u_new);
+      f_before = w_p * r.squaredNorm() + w_r * ang * ang;
+      r_model = r + d1 * step.template head<N>() + L * (E * step.template tail<2>());
     } else {
       const double f0 = w_p * r.squaredNorm() + w_r * ang * ang;
       const double slope = g.dot(step);  // < 0: a descent direction
