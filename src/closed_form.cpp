@@ -728,8 +728,9 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
         continue;
       }
     }
-    // A full Newton step that raised the cost has left the valley of the position term, the
-    // stiff one: on a surface with w_r << w_p L^2 (a nearest placement, the rotation
+    // A full Newton step that raised the cost, or whose position error is off its linear
+    // model by more than 1e-3 of it, has left the valley of the position term, the stiff
+    // one: on a surface with w_r << w_p L^2 (a nearest placement, the rotation
     // weighted 1e-6) and the handle pressed in, the tip may sit anywhere on the circle where
     // the stylus reaches the surface, a narrow, curved valley, where the quadratic model's
     // error along a long step (w_p times the surface's and the sphere's curvature)
@@ -739,7 +740,9 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
     // r_model), A = [d1, L E]; it is kept where it lowers the cost (at most 12 of them,
     // each costing one or two evaluations more). On a curve (N = 1) A is square: the
     // position term's minimum is a point, there is no valley, and no correction is made.
-    if (N == 2 && f_here > f_before && corrections < 12) {
+    const double off_model = (r - r_model).norm();
+    if (N == 2 && f_before < std::numeric_limits<double>::infinity() && corrections < 12 &&
+        (f_here > f_before || (off_model > 1e-3 * r.norm() && off_model > 1e-12 * L))) {
       ++corrections;
       Eigen::Matrix<double, 3, 2> E;
       E.col(0) = any_orthogonal(u);
