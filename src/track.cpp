@@ -14,10 +14,38 @@ namespace virtmech {
 
 namespace {
 
-// the mechanism's pose, Jacobian, error and weighted cost at theta, and g = J^T W e
+// The error's own derivative, -de/dtheta, into D where the rotation weights differ: the
+// rotation rows of J (the handle's angular velocity) mapped by J_r^-1(phi), the inverse
+// right Jacobian of SO(3) at the error's rotation phi (e = log(R_R R_V^T) moves by
+// -J_r^-1(phi) omega). With equal rotation weights J^T W e is the cost's gradient as it is
+// (J_r^-T phi = phi), so D is J and eq. 18 stands; with unequal ones J^T W e = 0 (eq. 23)
+// would be met away from the cost's minimum, where the cost, the backtracking's merit, no
+// longer falls along the steps, and Gauss-Newton crawls or stops short (a Probe on a
+// seven-joint arm whose five motors power one moment: 62 steps to its fixed point, or a
+// false stop, against 2-4 with the error's own derivative). Returns whether D differs.
+bool error_derivative(const Jacobian& J, const Vector6& e, const Vector6& W,
+                      Jacobian& D) noexcept {
+  if (W[3] == W[4] && W[4] == W[5]) return false;
+  const Eigen::Vector3d phi = e.tail<3>();
+  const double t = phi.norm();
+  if (!(t < M_PI - 1e-6)) return false;  // (also NaN: the log is not differentiable there)
+  Eigen::Matrix3d X;
+  X << 0.0, -phi.z(), phi.y(), phi.z(), 0.0, -phi.x(), -phi.y(), phi.x(), 0.0;
+  // 1 / t^2 - (1 + cos t) / (2 t sin t), by its series below 1e-4 (next term t^4 / 30240)
+  const double k = t < 1e-4 ? 1.0 / 12.0 + t * t / 720.0
+                            : 1.0 / (t * t) - (1.0 + std::cos(t)) / (2.0 * t * std::sin(t));
+  const Eigen::Matrix3d Jr_inv = Eigen::Matrix3d::Identity() + 0.5 * X + k * (X * X);
+  D = J;
+  D.bottomRows<3>() = Jr_inv * J.bottomRows<3>();
+  return true;
+}
+
+// the mechanism's pose, Jacobian, error and weighted cost at theta, the error's own
+// derivative D (error_derivative: J itself with equal rotation weights) and g = D^T W e
 struct Eval {
   Pose T;
   Jacobian J;
+  Jacobian D;
   Vector6 e;
   JointVector g;
   double cost = 0.0;
@@ -29,8 +57,9 @@ inline void evaluate(const Mechanism& m, const Pose& target, const JointVector& 
   ev.e = pose_error(target, ev.T);
   const Vector6 We = W.cwiseProduct(ev.e);
   ev.cost = ev.e.dot(We);
+  if (!error_derivative(ev.J, ev.e, W, ev.D)) ev.D = ev.J;
   // eq. 23's residual; -1/2 of the cost gradient
-  detail::jacobian_transpose_times(ev.J, We, ev.g);
+  detail::jacobian_transpose_times(ev.D, We, ev.g);
 }
 
 inline double cost_at(const Mechanism& m, const Pose& target, const JointVector& theta,
@@ -87,7 +116,8 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
   if (options.closed_form && mechanism.place(target, weights, theta0, theta, pose, J, error)) {
     const Vector6 We = weights.cwiseProduct(error);
     JointVector g;
-    detail::jacobian_transpose_times(J, We, g);
+    Jacobian D;
+    detail::jacobian_transpose_times(error_derivative(J, error, weights, D) ? D : J, We, g);
     result.converged = true;
     result.residual = std::sqrt(std::max(error.dot(We), 0.0));
     result.active = active_set(mechanism, theta, g, result.active_upper);
@@ -128,8 +158,8 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     }
     // eq. 18: delta = (J^T W J)^-1 J^T W (X_R - X_V), damped so rank-deficient J^T W J
     // gives the minimum-norm step
-    const Jacobian WJ = weights.asDiagonal() * ev->J;
-    H.noalias() = ev->J.transpose() * WJ;
+    const Jacobian WJ = weights.asDiagonal() * ev->D;
+    H.noalias() = ev->D.transpose() * WJ;
     H.diagonal().array() += options.damping * (H.trace() / n) + 1e-300;
     for (int i = 0; i < n; ++i) {
       if (!(locked & (1u << i))) continue;

@@ -38,7 +38,10 @@ struct TrackResult {
 /// Finds theta minimising the weighted pose error e = pose_error(target, Phi_V(theta)),
 /// e^T diag(W) e, starting from theta0, i.e. the fixed point of eq. 18, at which
 /// J_V^T W e = 0 (eq. 23). Steps are the damped Gauss-Newton step of eq. 18, limited in
-/// size, backtracked if they raise the cost, and projected onto the joint limits.
+/// size, backtracked if they raise the cost, and projected onto the joint limits. Where the
+/// three rotation weights differ, J_V's rotation rows are taken through the derivative of
+/// the error's logarithm (J_r^-1 of the error's rotation: -de/dtheta exactly), so that the
+/// fixed point is the cost's minimum; with equal ones the two coincide (docs/theory.md).
 /// theta0 and theta must have mechanism.dof() entries. noexcept, allocation-free.
 TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVector& theta0,
                   const Vector6& weights, const TrackOptions& options,
