@@ -697,6 +697,10 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
   double f_before = std::numeric_limits<double>::infinity();
   Eigen::Vector3d r_model = Eigen::Vector3d::Zero();
   int corrections = 0;
+  // the position term stiff against the turn's (the rotation weighing at most a hundredth
+  // at the stylus's length): where the valley below is narrow; on a curve (N = 1) there is
+  // none (see below)
+  const bool stiff = N == 2 && w_r <= 1e-2 * w_p * L * L;
   bool corrected = false;
   VecN x_uncorrected = x;
   Eigen::Vector3d u_uncorrected = u;
@@ -738,10 +742,12 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
     // brings the position error back to what the step's linear model predicted, by the
     // least change of the parameters and the stylus: (dx, du) = -A^T (A A^T)^-1 (r -
     // r_model), A = [d1, L E]; it is kept where it lowers the cost (at most 12 of them,
-    // each costing one or two evaluations more). On a curve (N = 1) A is square: the
-    // position term's minimum is a point, there is no valley, and no correction is made.
+    // each costing one or two evaluations more), and the convergence test then starts
+    // afresh. On a curve (N = 1) A is square: the position term's minimum is a point,
+    // there is no valley, and no correction is made; nor where the turn's weight is not
+    // small (`stiff`), where the corrections were kept on half the tries or fewer.
     const double off_model = (r - r_model).norm();
-    if (N == 2 && f_before < std::numeric_limits<double>::infinity() && corrections < 12 &&
+    if (stiff && f_before < std::numeric_limits<double>::infinity() && corrections < 12 &&
         (f_here > f_before || (off_model > 1e-3 * r.norm() && off_model > 1e-12 * L))) {
       ++corrections;
       Eigen::Matrix<double, 3, 2> E;
@@ -760,6 +766,7 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
           u_uncorrected = u;
           f_uncorrected = f_here;
           corrected = true;
+          last = 0.0;  // the next full step is not the one before's successor
           x = x_c;
           const Eigen::Vector3d w = E * c.template tail<2>();
           u = (u + w).normalized();

@@ -41,14 +41,16 @@ bool error_derivative(const Jacobian& J, const Vector6& e, const Vector6& W,
 }
 
 // the mechanism's pose, Jacobian, error and weighted cost at theta, the error's own
-// derivative D (error_derivative: J itself with equal rotation weights) and g = D^T W e
+// derivative (error_derivative: J itself with equal rotation weights) and g = D^T W e
 struct Eval {
   Pose T;
   Jacobian J;
-  Jacobian D;
+  Jacobian D_mapped;
+  bool mapped = false;
   Vector6 e;
   JointVector g;
   double cost = 0.0;
+  const Jacobian& D() const noexcept { return mapped ? D_mapped : J; }
 };
 
 inline void evaluate(const Mechanism& m, const Pose& target, const JointVector& theta,
@@ -57,9 +59,9 @@ inline void evaluate(const Mechanism& m, const Pose& target, const JointVector& 
   ev.e = pose_error(target, ev.T);
   const Vector6 We = W.cwiseProduct(ev.e);
   ev.cost = ev.e.dot(We);
-  if (!error_derivative(ev.J, ev.e, W, ev.D)) ev.D = ev.J;
+  ev.mapped = error_derivative(ev.J, ev.e, W, ev.D_mapped);
   // eq. 23's residual; -1/2 of the cost gradient
-  detail::jacobian_transpose_times(ev.D, We, ev.g);
+  detail::jacobian_transpose_times(ev.D(), We, ev.g);
 }
 
 inline double cost_at(const Mechanism& m, const Pose& target, const JointVector& theta,
@@ -74,6 +76,13 @@ inline double cost_at(const Mechanism& m, const Pose& target, const JointVector&
 // fractions of its value over a Gauss-Newton step (a linear convergence rate)
 constexpr double kSecantMinRatio = 0.1;
 constexpr double kSecantMaxRatio = 0.8;
+
+// halvings of a step before it counts as no descent, and the placement as converged. Where
+// the residual is large (a weakly weighted rotation error of radians) the Gauss-Newton step
+// can be far too long and this stops short of the minimum; 30 halvings found descent there,
+// but in the latency harness turned those placements into slow, capped ones (omni+
+// surface_probe's Gauss-Newton steps 1.62 -> 2.09 a cycle) without a scenario gaining.
+constexpr int kBacktracks = 10;
 
 inline void clamp_to_limits(const Mechanism& m, JointVector& x) noexcept {
   for (int i = 0; i < m.dof(); ++i) x[i] = std::min(std::max(x[i], m.lower()[i]), m.upper()[i]);
@@ -158,8 +167,8 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
     }
     // eq. 18: delta = (J^T W J)^-1 J^T W (X_R - X_V), damped so rank-deficient J^T W J
     // gives the minimum-norm step
-    const Jacobian WJ = weights.asDiagonal() * ev->D;
-    H.noalias() = ev->D.transpose() * WJ;
+    const Jacobian WJ = weights.asDiagonal() * ev->D();
+    H.noalias() = ev->D().transpose() * WJ;
     H.diagonal().array() += options.damping * (H.trace() / n) + 1e-300;
     for (int i = 0; i < n; ++i) {
       if (!(locked & (1u << i))) continue;
@@ -211,7 +220,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
       // far from it the linearisation of eq. 16 is only local: backtrack on the cost
       double alpha = 1.0;
       bool accepted = false;
-      for (int k = 0; k < 10; ++k) {
+      for (int k = 0; k < kBacktracks; ++k) {
         trial = theta + alpha * delta;
         clamp_to_limits(mechanism, trial);
         if (cost_at(mechanism, target, trial, weights) <= ev->cost) {

@@ -13,7 +13,9 @@ namespace virtmech {
 struct TrackOptions {
   int max_iterations = 20;        //!< Gauss-Newton iterations at most
   double step_tolerance = 1e-12;  //!< stop when max |delta theta| falls below this [rad or m]
-  double gradient_tolerance = 1e-14;  //!< stop when |J^T W e|_inf falls below this
+  /// stop when |J^T W e|_inf falls below this (with unequal rotation weights, J's rotation
+  /// rows taken through the error's own derivative: see track())
+  double gradient_tolerance = 1e-14;
   double max_step = 0.5;          //!< largest change of a revolute joint per iteration [rad]
   /// Largest change of a prismatic joint per iteration, as a fraction of the mechanism's
   /// length scale.

@@ -294,9 +294,8 @@ def test_surface_probe_newton_follows_the_narrow_valley_of_the_nearest_placement
             declined += 1
         elif k % 8 == 0:
             assert_newton_optimum(m, W, target, x0, cf.theta)
-    # (with it: 2 and 7 of these 128, both sides; without: 10 and 14)
-    print("DECLINED", declined)
-    assert declined <= poses // 16, declined
+    # (with it: none of these 128 either side; without: 10 and 14)
+    assert declined <= poses // 32, declined
 
 
 def test_surface_probe_on_a_cylinder_keeps_the_starts_turn():
