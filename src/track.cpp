@@ -29,8 +29,7 @@ bool error_derivative(const Jacobian& J, const Vector6& e, const Vector6& W,
   const Eigen::Vector3d phi = e.tail<3>();
   const double t = phi.norm();
   if (!(t < M_PI - 1e-6)) return false;  // (also NaN: the log is not differentiable there)
-  Eigen::Matrix3d X;
-  X << 0.0, -phi.z(), phi.y(), phi.z(), 0.0, -phi.x(), -phi.y(), phi.x(), 0.0;
+  const Eigen::Matrix3d X = skew(phi);
   // 1 / t^2 - (1 + cos t) / (2 t sin t), by its series below 1e-4 (next term t^4 / 30240)
   const double k = t < 1e-4 ? 1.0 / 12.0 + t * t / 720.0
                             : 1.0 / (t * t) - (1.0 + std::cos(t)) / (2.0 * t * std::sin(t));

@@ -68,6 +68,17 @@ def test_a_probe_on_a_curved_surface_pushes_with_kp_times_depth_and_lets_go(runs
     assert t[pressed][-1] < t[-1] - 0.5
 
 
+@pytest.mark.parametrize(
+    "name", ["omni-surface-nurbs", "omni-surface-sphere", "omni-letter", "omni-trocar"]
+)
+def test_every_placement_converges(runs, name):
+    """No cycle reports not_converged: the Newton placements on a surface or a curve keep in
+    their valley (docs/theory.md; omni-surface-nurbs had 24 such cycles before the
+    second-order correction)."""
+    status = runs[name].col("status").astype(int)
+    assert np.count_nonzero(status & vm.status.NOT_CONVERGED) == 0
+
+
 def test_the_sphere_falls_away_under_the_sliding_tip(runs):
     """The hand moves sideways at a constant height: the tip, pressed on the top, slides
     down the flank until the sphere falls away from under it, before the hand lifts (3.2 s)."""
