@@ -110,7 +110,8 @@ def test_main_rejects_a_bad_cycle_count():
 
 def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     # a stand-in simulation: 2 s simulated (2001 cycles) in 0.07, 0.04 and 0.05 s of wall
-    # time, of which 12, 20 and 25 ms in the controller and 4, 2 and 1 ms deriving columns,
+    # time, of which 12, 20 and 25 ms in the controller and 4, 2 and 1 ms deriving columns
+    # (on their own thread; the loop waited 1, 0.5 and 0.2 ms for them),
     # each run followed by MuJoCo alone in 0.05, 0.02 and 0.04 s: ratios 1.4, 2.0 and 1.25,
     # the figures are the pair of median ratio's (the first run's; the medians of each side,
     # 0.05 / 0.04, would give 1.25), its parts that run's
@@ -118,13 +119,15 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     scen.names = lambda: ["omni_probe_table"]
     scen.load = lambda name: {"name": name}
     sim = types.ModuleType("virtmech.sim")
-    walls = iter([(0.07, 0.012, 0.004), (0.04, 0.02, 0.002), (0.05, 0.025, 0.001)])
+    walls = iter([(0.07, 0.012, 0.004, 0.001), (0.04, 0.02, 0.002, 0.0005),
+                  (0.05, 0.025, 0.001, 0.0002)])
     events = []  # ("run", result) and ("alone", result, repeats), in order
 
     def run(scenario, seed=None, progress=False):
-        wall, control, derived = next(walls)
+        wall, control, derived, wait = next(walls)
         result = types.SimpleNamespace(sim_time_s=2.0, wall_time_s=wall, control_time_s=control,
-                                       derived_time_s=derived, n_cycles=2001,
+                                       derived_time_s=derived, derived_wait_s=wait,
+                                       n_cycles=2001,
                                        info={"physics": {"engine": "compiled"}})
         events.append(("run", result))
         return result
@@ -156,7 +159,8 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
                         "control_time_s": pytest.approx(0.012),
                         "control_us_per_cycle": pytest.approx(0.012 / 2001 * 1e6),
                         "derived_time_s": pytest.approx(0.004),
-                        "loop_overhead_vs_mujoco": pytest.approx((0.07 - 0.012 - 0.004) / 0.05),
+                        "derived_wait_s": pytest.approx(0.001),
+                        "loop_overhead_vs_mujoco": pytest.approx((0.07 - 0.012 - 0.001) / 0.05),
                         "runs": 3}]
 
 

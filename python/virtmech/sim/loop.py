@@ -20,6 +20,7 @@ import os
 import re
 import sys
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -398,9 +399,12 @@ class SimResult:
     #: of `wall_time_s`, the time spent in the controller's (or the set's) step: the
     #: rendering itself, the rest is the simulation around it
     control_time_s: float = 0.0
-    #: of `wall_time_s`, the time spent deriving the log's columns from the logged state
-    #: (distances from the shape, PlanarArm angles, the grip) after each block
+    #: time spent deriving the log's columns from the logged state (distances from the
+    #: shape, PlanarArm angles, the grip), on a second thread while the loop runs on
     derived_time_s: float = 0.0
+    #: of `wall_time_s`, the time the loop spent on the derived columns or waiting for them
+    #: (the part of `derived_time_s` not run alongside the loop: each block's last stretch)
+    derived_wait_s: float = 0.0
 
     def blocks(self, names, rows: int | None = None):
         """The named columns of the log, a block of rows at a time (virtmech.sim.logio)."""
@@ -513,6 +517,9 @@ UNITS = {
 
 #: simulated seconds per block of the log (run's chunk_s)
 CHUNK_S = 10.0
+#: cycles of the last stretch of each block (its derived columns are the only ones not
+#: filled alongside the loop)
+DERIVE_TAIL_CYCLES = 100
 #: a log larger than this is kept in a memory-mapped file when run is given a spill_dir
 LOG_IN_MEMORY_BYTES = 256 * 2**20
 
@@ -651,9 +658,11 @@ def run(
     LOG_IN_MEMORY_BYTES is kept in a memory-mapped file in `spill_dir` (if given; the file
     is removed at once where the system allows and lives until the log is released).
 
-    The control cycles and physics steps run in C++ (virtmech.sim.inner.ServoLoop); the
-    columns it does not write (distances, PlanarArm angles, grip) are filled after each
-    block."""
+    The control cycles and physics steps run in C++ (virtmech.sim.inner.ServoLoop), with
+    Python's lock released; the columns it does not write (distances, PlanarArm angles,
+    grip) follow from each row alone, so they are filled on a second thread, a stretch of
+    rows (at most 1000 cycles) at a time, while the loop runs the next stretch (a block's
+    last stretch by the loop itself). A block is handed on once all its rows are filled."""
     if not chunk_s > 0:
         raise ValueError(f"chunk_s: expected a number > 0, got {chunk_s!r}")
     import mujoco
@@ -746,42 +755,74 @@ def run(
     post = _PostColumns(columns, members or [mech.to_dict()], planar, contacts)
 
     # stretches of cycles: split where a segment starts (the hand's plan needs the handle's
-    # pose there), every 1000 cycles (progress) and at the ends of the blocks
+    # pose there), every 1000 cycles (progress), at the ends of the blocks and
+    # DERIVE_TAIL_CYCLES before them (the last stretch's columns are derived while the loop
+    # waits: a short one leaves little to wait for)
+    ends = set(range(block, N, block)) | {N}
     cuts = sorted(
-        set(intent.start_cycles(N)) | set(range(0, N, 1000)) | set(range(0, N, block)) | {N}
+        set(intent.start_cycles(N)) | set(range(0, N, 1000)) | {0} | ends
+        | {e - DERIVE_TAIL_CYCLES for e in ends if e - DERIVE_TAIL_CYCLES > 0}
     )
+    post_wall = [0.0]  # the derived columns' time, on the worker thread
+
+    def derive(rows: np.ndarray) -> None:
+        t_post = time.perf_counter()
+        post(rows)
+        post_wall[0] += time.perf_counter() - t_post
+
+    # the derived columns of a stretch are filled on this thread while the loop runs the
+    # next one (the loop and the distance searches release Python's lock); its futures are
+    # those of the current block's stretches
+    worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="virtmech-derived")
+    pending: list[Future] = []
     wall0 = time.perf_counter()
     sink_wall = 0.0  # the sink's time (writing the log): not the simulation's
-    post_wall = 0.0  # the derived columns' time (part of the simulation's)
+    wait_wall = 0.0  # the loop's time waiting for the derived columns (the simulation's)
     b0 = 0  # first cycle of the current block
-    for k0, k1 in zip(cuts[:-1], cuts[1:]):
-        T_h0 = device.forward(Cinv @ (data.qpos - c0))
-        plan = intent.plan(k0, k1, T_h0)
-        rows = k1 - k0
-        noise = (
-            rng.normal(0.0, sensor_settings.noise_rad, (rows, n))
-            if sensor_settings.noise_rad > 0.0
-            else np.zeros((rows, n))
-        )
-        dropout = (
-            (rng.random(rows) < sensor_settings.dropout_probability).astype(float)
-            if sensor_settings.dropout_probability > 0.0
-            else np.zeros(rows)
-        )
-        servo.run(k0, plan, noise, dropout, buf[k0 - b0 : k1 - b0])
-        if k1 - b0 == block or k1 == N:
-            rows_done = buf[: k1 - b0]
-            t_post = time.perf_counter()
-            post(rows_done)
-            post_wall += time.perf_counter() - t_post
-            if log is not None:
-                log[b0:k1] = rows_done
-            if sink is not None:
-                t_sink = time.perf_counter()
-                sink(rows_done, columns)
-                sink_wall += time.perf_counter() - t_sink
-            b0 = k1
-        bar.update(k1 * T_ctrl)
+    underived = None  # the rows of the last stretch run, not yet handed to the worker
+    try:
+        for k0, k1 in zip(cuts[:-1], cuts[1:]):
+            T_h0 = device.forward(Cinv @ (data.qpos - c0))
+            plan = intent.plan(k0, k1, T_h0)
+            rows = k1 - k0
+            noise = (
+                rng.normal(0.0, sensor_settings.noise_rad, (rows, n))
+                if sensor_settings.noise_rad > 0.0
+                else np.zeros((rows, n))
+            )
+            dropout = (
+                (rng.random(rows) < sensor_settings.dropout_probability).astype(float)
+                if sensor_settings.dropout_probability > 0.0
+                else np.zeros(rows)
+            )
+            # the stretch before is derived while this one runs: handed over only now, after
+            # this stretch's Python work, so that the two threads do not take turns at
+            # Python's lock (each turn can cost a switch interval, 5 ms)
+            if underived is not None:
+                pending.append(worker.submit(derive, underived))
+            servo.run(k0, plan, noise, dropout, buf[k0 - b0 : k1 - b0])
+            underived = buf[k0 - b0 : k1 - b0]
+            if k1 - b0 == block or k1 == N:
+                # the block's last stretch on this thread (it would wait for it anyway, and
+                # waking the worker costs more than a short stretch), then the others' ends
+                t_wait = time.perf_counter()
+                derive(underived)
+                underived = None
+                for f in pending:
+                    f.result()  # its rows filled (or its error raised here)
+                pending.clear()
+                wait_wall += time.perf_counter() - t_wait
+                rows_done = buf[: k1 - b0]
+                if log is not None:
+                    log[b0:k1] = rows_done
+                if sink is not None:
+                    t_sink = time.perf_counter()
+                    sink(rows_done, columns)
+                    sink_wall += time.perf_counter() - t_sink
+                b0 = k1
+            bar.update(k1 * T_ctrl)
+    finally:  # no derived stretch left running past the run (on an error: none started)
+        worker.shutdown(wait=True, cancel_futures=True)
     wall = time.perf_counter() - wall0 - sink_wall
     bar.close(wall)
 
@@ -818,7 +859,8 @@ def run(
         wall_time_s=wall,
         sink_time_s=sink_wall,
         control_time_s=servo.control_time_s,
-        derived_time_s=post_wall,
+        derived_time_s=post_wall[0],
+        derived_wait_s=wait_wall,
         info=info,
     )
 
