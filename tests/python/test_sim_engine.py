@@ -140,6 +140,51 @@ def test_the_derived_columns_are_filled_on_a_second_thread_for_every_row(monkeyp
     np.testing.assert_array_equal(np.concatenate(sunk), r.log)
 
 
+def test_python_beside_the_loop_gives_the_log_of_python_between_stretches(monkeypatch):
+    # the hand's plans, the sensor draws and the derived columns made on the worker thread
+    # while the loop runs (the next stretch's inputs, the last stretch's columns) give the
+    # log that the same work done on the loop's thread, stretch by stretch, gives: noise,
+    # dropouts and several intent segments across three blocks and their stretches
+    import concurrent.futures as cf
+    import threading
+
+    from virtmech.sim import loop
+
+    s = load("omni-fig11").with_overrides(
+        duration_s=2.5, sensors={"noise_rad": 2e-4, "dropout_probability": 0.05}
+    )
+    names = []
+    real_plan = Intent.plan
+
+    def plan(self, k0, k1, T_handle):
+        names.append((threading.current_thread().name, T_handle is None))
+        return real_plan(self, k0, k1, T_handle)
+
+    monkeypatch.setattr(Intent, "plan", plan)
+    beside = run(s, seed=3, chunk_s=1.0)
+    # the plans of stretches starting a segment on the loop's thread, from the handle's
+    # pose; the others on the worker, without it
+    assert ("MainThread", False) in names and ("virtmech-derived_0", True) in names
+    assert {n for n in names if n[0] == "MainThread"} == {("MainThread", False)}
+
+    class OnTheLoopsThread:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def submit(self, fn, *args):
+            f = cf.Future()
+            f.set_result(fn(*args))
+            return f
+
+        def shutdown(self, *args, **kwargs):
+            pass
+
+    monkeypatch.setattr(loop, "ThreadPoolExecutor", OnTheLoopsThread)
+    between = run(s, seed=3, chunk_s=1.0)
+    assert np.array_equal(beside.log, between.log, equal_nan=True)
+    assert np.abs(beside.col("qm0") - beside.col("q0")).max() > 1e-5  # the noise is on
+
+
 def test_an_error_deriving_the_columns_is_raised_by_the_run(monkeypatch):
     from virtmech.sim import loop
 

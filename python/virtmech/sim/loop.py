@@ -659,10 +659,12 @@ def run(
     is removed at once where the system allows and lives until the log is released).
 
     The control cycles and physics steps run in C++ (virtmech.sim.inner.ServoLoop), with
-    Python's lock released; the columns it does not write (distances, PlanarArm angles,
-    grip) follow from each row alone, so they are filled on a second thread, a stretch of
-    rows (at most 1000 cycles) at a time, while the loop runs the next stretch (a block's
-    last stretch by the loop itself). A block is handed on once all its rows are filled."""
+    Python's lock released, a stretch of at most 1000 cycles at a time; Python's part runs
+    beside it on a worker thread: the next stretch's hand plan and sensor draws (where no
+    intent segment starts there), and the columns the loop does not write (distances,
+    PlanarArm angles, grip: they follow from each row alone) of the stretch before (a
+    block's last stretch by the loop itself). A block is handed on once all its rows are
+    filled (docs/simulation.md, "One loop, in C++")."""
     if not chunk_s > 0:
         raise ValueError(f"chunk_s: expected a number > 0, got {chunk_s!r}")
     import mujoco
@@ -758,46 +760,59 @@ def run(
     # pose there), every 1000 cycles (progress), at the ends of the blocks and
     # DERIVE_TAIL_CYCLES before them (the last stretch's columns are derived while the loop
     # waits: a short one leaves little to wait for)
+    starts = set(intent.start_cycles(N))
     ends = set(range(block, N, block)) | {N}
     cuts = sorted(
-        set(intent.start_cycles(N)) | set(range(0, N, 1000)) | {0} | ends
+        starts | set(range(0, N, 1000)) | {0} | ends
         | {e - DERIVE_TAIL_CYCLES for e in ends if e - DERIVE_TAIL_CYCLES > 0}
     )
-    post_wall = [0.0]  # the derived columns' time, on the worker thread
+    stretches = list(zip(cuts[:-1], cuts[1:]))
+    post_wall = [0.0]  # the derived columns' time, mostly on the worker thread
 
     def derive(rows: np.ndarray) -> None:
         t_post = time.perf_counter()
         post(rows)
         post_wall[0] += time.perf_counter() - t_post
 
-    # the derived columns of a stretch are filled on this thread while the loop runs the
-    # next one (the loop and the distance searches release Python's lock); its futures are
-    # those of the current block's stretches
+    def inputs(k0: int, k1: int, T_h0: np.ndarray | None):
+        """A stretch's hand plan, sensor noise and dropouts (the random draws in the
+        stretches' order). T_h0, the handle's pose at k0, matters only where a segment
+        starts there."""
+        rows = k1 - k0
+        plan = intent.plan(k0, k1, T_h0)
+        noise = (
+            rng.normal(0.0, sensor_settings.noise_rad, (rows, n))
+            if sensor_settings.noise_rad > 0.0
+            else np.zeros((rows, n))
+        )
+        dropout = (
+            (rng.random(rows) < sensor_settings.dropout_probability).astype(float)
+            if sensor_settings.dropout_probability > 0.0
+            else np.zeros(rows)
+        )
+        return plan, noise, dropout
+
+    # Python's work runs beside the loop, on one worker thread (the loop releases Python's
+    # lock while it runs): the next stretch's inputs, unless a segment starts there (its
+    # plan needs the handle's pose the stretch before ends with), then the stretch before's
+    # derived columns. One worker takes them in that order, so the random draws keep theirs.
     worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="virtmech-derived")
-    pending: list[Future] = []
+    pending: list[Future] = []  # the derived columns of the current block's stretches
     wall0 = time.perf_counter()
     sink_wall = 0.0  # the sink's time (writing the log): not the simulation's
     wait_wall = 0.0  # the loop's time waiting for the derived columns (the simulation's)
     b0 = 0  # first cycle of the current block
     underived = None  # the rows of the last stretch run, not yet handed to the worker
+    ahead: Future | None = None  # this stretch's inputs, made while the last one ran
     try:
-        for k0, k1 in zip(cuts[:-1], cuts[1:]):
-            T_h0 = device.forward(Cinv @ (data.qpos - c0))
-            plan = intent.plan(k0, k1, T_h0)
-            rows = k1 - k0
-            noise = (
-                rng.normal(0.0, sensor_settings.noise_rad, (rows, n))
-                if sensor_settings.noise_rad > 0.0
-                else np.zeros((rows, n))
-            )
-            dropout = (
-                (rng.random(rows) < sensor_settings.dropout_probability).astype(float)
-                if sensor_settings.dropout_probability > 0.0
-                else np.zeros(rows)
-            )
-            # the stretch before is derived while this one runs: handed over only now, after
-            # this stretch's Python work, so that the two threads do not take turns at
-            # Python's lock (each turn can cost a switch interval, 5 ms)
+        for i, (k0, k1) in enumerate(stretches):
+            if ahead is not None:
+                plan, noise, dropout = ahead.result()
+                ahead = None
+            else:
+                plan, noise, dropout = inputs(k0, k1, device.forward(Cinv @ (data.qpos - c0)))
+            if i + 1 < len(stretches) and stretches[i + 1][0] not in starts:
+                ahead = worker.submit(inputs, *stretches[i + 1], None)
             if underived is not None:
                 pending.append(worker.submit(derive, underived))
             servo.run(k0, plan, noise, dropout, buf[k0 - b0 : k1 - b0])
