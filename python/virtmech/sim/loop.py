@@ -675,7 +675,11 @@ def run(
         scenario = sc.load(scenario)
     S = scenario.data
     seed = S["seed"] if seed is None else int(seed)
+    # the sensor noise's draws, and the dropouts' from their own stream (a child of the same
+    # seed): the draws of each stream follow one another whatever the stretches, so the log
+    # does not depend on where the run is split into stretches and blocks
     rng = np.random.default_rng(seed)
+    dropout_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
 
     device = _built(scenario, "device", lambda: make_device(S["device"]))
     mech = _built(scenario, "mechanism", lambda: make_mechanism(S["mechanism"]))
@@ -767,12 +771,14 @@ def run(
         | {e - DERIVE_TAIL_CYCLES for e in ends if e - DERIVE_TAIL_CYCLES > 0}
     )
     stretches = list(zip(cuts[:-1], cuts[1:]))
-    post_wall = [0.0]  # the derived columns' time, mostly on the worker thread
+    post_wall = 0.0  # the derived columns' time (mostly on the worker thread)
 
-    def derive(rows: np.ndarray) -> None:
+    def derive(rows: np.ndarray) -> float:
+        """Fills the rows' derived columns; returns the time it took (added up by the loop's
+        thread only)."""
         t_post = time.perf_counter()
         post(rows)
-        post_wall[0] += time.perf_counter() - t_post
+        return time.perf_counter() - t_post
 
     def inputs(k0: int, k1: int, T_h0: np.ndarray | None):
         """A stretch's hand plan, sensor noise and dropouts (the random draws in the
@@ -786,7 +792,7 @@ def run(
             else np.zeros((rows, n))
         )
         dropout = (
-            (rng.random(rows) < sensor_settings.dropout_probability).astype(float)
+            (dropout_rng.random(rows) < sensor_settings.dropout_probability).astype(float)
             if sensor_settings.dropout_probability > 0.0
             else np.zeros(rows)
         )
@@ -821,10 +827,10 @@ def run(
                 # the block's last stretch on this thread (it would wait for it anyway, and
                 # waking the worker costs more than a short stretch), then the others' ends
                 t_wait = time.perf_counter()
-                derive(underived)
+                post_wall += derive(underived)
                 underived = None
                 for f in pending:
-                    f.result()  # its rows filled (or its error raised here)
+                    post_wall += f.result()  # its rows filled (or its error raised here)
                 pending.clear()
                 wait_wall += time.perf_counter() - t_wait
                 rows_done = buf[: k1 - b0]
@@ -874,7 +880,7 @@ def run(
         wall_time_s=wall,
         sink_time_s=sink_wall,
         control_time_s=servo.control_time_s,
-        derived_time_s=post_wall[0],
+        derived_time_s=post_wall,
         derived_wait_s=wait_wall,
         info=info,
     )
