@@ -229,10 +229,15 @@ void watchdog(const ControllerModel& M, ControllerData& d, double t_s, CycleOutp
   d.last_t = t_s;
 }
 
-// X_R = Phi_R(q), J_R(q) (eqs. 13, 15) and the handle twist.
-void device_kinematics(const Device& dev, ControllerData& d, const double* q,
-                       const double* dq) noexcept {
-  dev.forward_jacobian(q, d.handle_pose, d.J_R);
+// X_R = Phi_R(q), J_R(q) (eqs. 13, 15), or the caller's (at_q), and the handle twist.
+void device_kinematics(const Device& dev, ControllerData& d, const double* q, const double* dq,
+                       const DeviceKinematics* at_q) noexcept {
+  if (at_q) {
+    d.handle_pose = at_q->pose;
+    d.J_R = at_q->J;
+  } else {
+    dev.forward_jacobian(q, d.handle_pose, d.J_R);
+  }
   d.v_R = detail::jacobian_times(d.J_R, dq);
 }
 
@@ -627,7 +632,7 @@ std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
 std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& out,
                                double t_s) noexcept {
   const detail::FlushDenormals flush;
-  const std::uint32_t placed = place_cycle(q, dq, out, t_s);
+  const std::uint32_t placed = place_cycle(q, dq, nullptr, out, t_s);
   if (placed & status::kFaultMask) return placed;
   return render_cycle(out);
 }
@@ -635,7 +640,13 @@ std::uint32_t Controller::step(const double* q, const double* dq, CycleOutput& o
 std::uint32_t Controller::place(const double* q, const double* dq, CycleOutput& out,
                                 double t_s) noexcept {
   const detail::FlushDenormals flush;
-  return place_cycle(q, dq, out, t_s);
+  return place_cycle(q, dq, nullptr, out, t_s);
+}
+
+std::uint32_t Controller::place(const double* q, const double* dq, const DeviceKinematics& at_q,
+                                CycleOutput& out, double t_s) noexcept {
+  const detail::FlushDenormals flush;
+  return place_cycle(q, dq, &at_q, out, t_s);
 }
 
 std::uint32_t Controller::render(CycleOutput& out) noexcept {
@@ -643,7 +654,8 @@ std::uint32_t Controller::render(CycleOutput& out) noexcept {
   return render_cycle(out);
 }
 
-std::uint32_t Controller::place_cycle(const double* q, const double* dq, CycleOutput& out,
+std::uint32_t Controller::place_cycle(const double* q, const double* dq,
+                                      const DeviceKinematics* at_q, CycleOutput& out,
                                       double t_s) noexcept {
   ControllerData& d = data_;
   d.cycle_start = std::chrono::steady_clock::now();
@@ -670,7 +682,7 @@ std::uint32_t Controller::place_cycle(const double* q, const double* dq, CycleOu
   }
   if (dev.fully_actuated()) out.wrench_unrendered.setZero();
   watchdog(M, d, t_s, out);
-  device_kinematics(dev, d, q, dq);
+  device_kinematics(dev, d, q, dq, at_q);
   d.q_cycle = Eigen::Map<const JointVector>(q, dev.dof());
   out.handle_pose = d.handle_pose;
 

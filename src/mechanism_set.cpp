@@ -97,9 +97,13 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
   // every member's placements (Controller::place), its distance from them; the wrench only
   // for the member rendered (Controller::render), once it is chosen
   std::uint32_t faults = 0;
+  // the device's kinematics once, for every member (a member that finds the input
+  // implausible faults before it reads them)
+  device_->forward_jacobian(q, kinematics_.pose, kinematics_.J);
   for (int i = 0; i < n; ++i) {
     CycleOutput& o = outputs_[static_cast<size_t>(i)];
-    faults |= members_[static_cast<size_t>(i)]->place(q, dq, o, t_s) & status::kFaultMask;
+    faults |= members_[static_cast<size_t>(i)]->place(q, dq, kinematics_, o, t_s) &
+              status::kFaultMask;
     out.distance[static_cast<size_t>(i)] =
         member_distance(members_[static_cast<size_t>(i)]->mechanism(), o);
   }

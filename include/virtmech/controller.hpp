@@ -203,6 +203,13 @@ struct ControllerData {
   std::chrono::steady_clock::time_point cycle_start;
 };
 
+/// The device's pose and Jacobian at one q (Device::forward_jacobian's outputs), computed
+/// once for several controllers of the same device: a MechanismSet's members.
+struct DeviceKinematics {
+  Pose pose = Pose::Identity();
+  Jacobian J;
+};
+
 class Controller {
  public:
   /// Validates settings and allocates every buffer; throws std::invalid_argument.
@@ -233,6 +240,12 @@ class Controller {
   /// advancing as if rendered. All three noexcept and allocation-free.
   std::uint32_t place(const double* q, const double* dq, CycleOutput& out,
                       double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
+  /// place() with the device's kinematics at q given: `at_q` must be
+  /// device().forward_jacobian(q) (the same device object's), so that the result is
+  /// place(q, dq, out, t_s)'s, bit for bit, without computing them again.
+  std::uint32_t place(const double* q, const double* dq, const DeviceKinematics& at_q,
+                      CycleOutput& out,
+                      double t_s = std::numeric_limits<double>::quiet_NaN()) noexcept;
   std::uint32_t render(CycleOutput& out) noexcept;
   std::uint32_t unrendered(CycleOutput& out) noexcept;
 
@@ -256,8 +269,8 @@ class Controller {
 
  private:
   // place() and render() without setting the floating-point mode (step() sets it once)
-  std::uint32_t place_cycle(const double* q, const double* dq, CycleOutput& out,
-                            double t_s) noexcept;
+  std::uint32_t place_cycle(const double* q, const double* dq, const DeviceKinematics* at_q,
+                            CycleOutput& out, double t_s) noexcept;
   std::uint32_t render_cycle(CycleOutput& out) noexcept;
   std::uint32_t finish(CycleOutput& out) noexcept;  // the cycle's time; last()
 

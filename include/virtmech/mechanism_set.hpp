@@ -65,8 +65,9 @@ class MechanismSet {
   int add(std::shared_ptr<const Mechanism> mechanism,
           const ControllerSettings& settings = ControllerSettings());
 
-  /// One servo cycle: every member places (Controller::place: their placements follow the
-  /// handle and give their distances), the set chooses the member to render, which renders
+  /// One servo cycle: every member places (Controller::place, from the device's kinematics
+  /// computed once for all: their placements follow the handle and give their distances),
+  /// the set chooses the member to render, which renders
   /// (Controller::render) while the others end their cycles without a wrench
   /// (Controller::unrendered), and blends its force in. noexcept, allocation-free.
   /// With no member added the torque is zero.
@@ -91,6 +92,7 @@ class MechanismSet {
   MechanismSetSettings settings_;
   std::vector<std::unique_ptr<Controller>> members_;
   std::vector<CycleOutput> outputs_;
+  DeviceKinematics kinematics_;  // the device's at the cycle's q, shared by the members
   int active_ = -1;
   bool switching_ = false;
   Vector6 wrench_ = Vector6::Zero();  // the wrench output last cycle

@@ -60,6 +60,39 @@ TEST(Controller, PassiveJointTorquesAreExactlyZero) {
   }
 }
 
+TEST(Controller, PlacedWithTheDevicesKinematicsGivenItIsPlacedAsAlone) {
+  // place(q, dq, at_q, ...) with at_q = forward_jacobian(q) (what a MechanismSet hands its
+  // members) is place(q, dq, ...), bit for bit, cycle after cycle along a smooth path
+  // (warm starts, both placements), and so is the rendering after it
+  auto omni = std::make_shared<PhantomOmni>();
+  auto probe = std::make_shared<Probe>(Eigen::Vector3d(0, -0.03, 0), Eigen::Vector3d::UnitY(),
+                                       0.1, Eigen::Vector3d::Zero(), true);
+  Controller alone(omni, probe), given(omni, probe);
+  std::mt19937 rng(53);
+  const JointVector a = random_within(rng, omni->lower(), omni->upper());
+  const JointVector b = random_within(rng, omni->lower(), omni->upper());
+  CycleOutput o1, o2;
+  DeviceKinematics at_q;
+  for (int k = 0; k <= 300; ++k) {
+    const double s = 0.5 - 0.5 * std::cos(M_PI * k / 300.0);
+    const JointVector q = a + s * (b - a);
+    const JointVector dq = (b - a) * (0.5 * M_PI / 300.0 * std::sin(M_PI * k / 300.0) / 1e-3);
+    const double t = 1e-3 * k;
+    omni->forward_jacobian(q.data(), at_q.pose, at_q.J);
+    const std::uint32_t s1 = alone.place(q.data(), dq.data(), o1, t);
+    const std::uint32_t s2 = given.place(q.data(), dq.data(), at_q, o2, t);
+    ASSERT_EQ(s1, s2);
+    ASSERT_EQ(o1.theta, o2.theta) << k;
+    ASSERT_EQ(o1.theta_star, o2.theta_star) << k;
+    ASSERT_EQ(o1.error, o2.error) << k;
+    ASSERT_EQ(o1.error_star, o2.error_star) << k;
+    ASSERT_TRUE(o1.handle_pose.matrix() == o2.handle_pose.matrix()) << k;
+    ASSERT_EQ(alone.render(o1), given.render(o2));
+    ASSERT_EQ(o1.torque, o2.torque) << k;
+    ASSERT_EQ(o1.error_dot, o2.error_dot) << k;
+  }
+}
+
 TEST(Controller, OmniWrenchCarriesNoMomentAndIsExplainedByTorques) {
   // the applied wrench is renderable: J_R^T f = tau with zero passive torques
   auto omni = std::make_shared<PhantomOmni>();
