@@ -253,7 +253,7 @@ def numpy_reference(case: Case, reference: Any, q_warm: np.ndarray, dq_warm: np.
     return {"median_us": float(np.median(ns)) * 1e-3, "torque_difference": difference}
 
 
-def simulation_figures(scenarios: list[str] | None = None, repeats: int = 3,
+def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
                        mujoco_alone: Any = None) -> tuple[list[dict[str, Any]], str]:
     """Real-time factor of each shipped scenario, if the simulation is installed: simulated
     seconds per wall second of the closed loop (`SimResult.wall_time_s`); `repeats` runs,

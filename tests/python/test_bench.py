@@ -145,7 +145,7 @@ def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
         events.append(("alone", result, repeats))
         return next(alone)
 
-    figures, note = bench.simulation_figures(mujoco_alone=mujoco_alone)
+    figures, note = bench.simulation_figures(repeats=3, mujoco_alone=mujoco_alone)
     assert note == ""
     # each run followed by one replay of that run's own result
     assert [e[0] for e in events] == ["run", "alone"] * 3
