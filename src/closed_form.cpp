@@ -24,6 +24,14 @@ struct Angle {
   double x, c, s;
 };
 
+// an orthonormal basis of the sphere's tangent plane at the unit vector u (its columns)
+Eigen::Matrix<double, 3, 2> tangent_basis(const Eigen::Vector3d& u) noexcept {
+  Eigen::Matrix<double, 3, 2> E;
+  E.col(0) = any_orthogonal(u);
+  E.col(1) = u.cross(E.col(0));
+  return E;
+}
+
 // A sphere's position cost (rho - radius)^2 as a function of c: its derivatives P_c and
 // P_cc (rho = sqrt(sa - 2 sb c): drho/dc = -sb / rho), the one-sided cost's where it acts
 void sphere_cost_derivatives(const TiltCost& k, double c, double& P_c, double& P_cc) noexcept {
@@ -311,9 +319,7 @@ Eigen::Vector3d sphere_newton(const StylusCost& f, Eigen::Vector3d u, double& va
     Eigen::Matrix3d H;
     f.derivatives(u, g, H, value);
     stale = false;
-    Eigen::Matrix<double, 3, 2> E;
-    E.col(0) = any_orthogonal(u);
-    E.col(1) = u.cross(E.col(0));
+    const Eigen::Matrix<double, 3, 2> E = tangent_basis(u);
     const Eigen::Vector2d g2 = E.transpose() * g;
     if (!(g2.norm() > 1e-15 * scale)) break;  // also NaN
     // the Riemannian Hessian: the tangent block of H less (u . g) I
@@ -746,13 +752,11 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
     // afresh. On a curve (N = 1) A is square: the position term's minimum is a point,
     // there is no valley, and no correction is made; nor where the turn's weight is not
     // small (`stiff`), where the corrections were kept on half the tries or fewer.
+    const Eigen::Matrix<double, 3, 2> E = tangent_basis(u);  // (u's, for both uses below)
     const double off_model = (r - r_model).norm();
     if (stiff && f_before < std::numeric_limits<double>::infinity() && corrections < 12 &&
         (f_here > f_before || (off_model > 1e-3 * r.norm() && off_model > 1e-12 * L))) {
       ++corrections;
-      Eigen::Matrix<double, 3, 2> E;
-      E.col(0) = any_orthogonal(u);
-      E.col(1) = u.cross(E.col(0));
       Eigen::Matrix<double, 3, M> A;
       A.template leftCols<N>() = d1;
       A.template rightCols<2>() = L * E;
@@ -779,9 +783,6 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
     f_before = std::numeric_limits<double>::infinity();
     // the gradient and Hessian in u as a function on R^3, then on the sphere
     const Eigen::Vector3d g_u = 2.0 * w_p * L * r - 2.0 * w_r * h * u_R;
-    Eigen::Matrix<double, 3, 2> E;
-    E.col(0) = any_orthogonal(u);
-    E.col(1) = u.cross(E.col(0));
     VecM g;
     g.template head<N>() = 2.0 * w_p * (d1.transpose() * r);
     g.template tail<2>() = E.transpose() * g_u;

@@ -266,10 +266,10 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
     solving the start pose; `control_time_s`: of that run's wall time, the
     controller's (or the set's) step, `control_us_per_cycle` the same per control cycle,
     `derived_time_s` the log's derived columns (distances from the shape, ...: on a second
-    thread, alongside the loop), `derived_wait_s` the part of the wall time the loop waited
-    for them, and `loop_overhead_vs_mujoco` the rest of the wall time (the simulation
-    around the rendering: sensors, the hand, the log rows) over MuJoCo alone. Returns the
-    figures and a note."""
+    thread, alongside the loop), `derived_wait_s` the part of the wall time the loop spent
+    on them or waited for them, and `loop_overhead_vs_mujoco` the rest of the wall time
+    (the simulation around the rendering: sensors, the hand, the log rows) over MuJoCo
+    alone. Returns the figures and a note."""
     try:
         from virtmech import scenarios as vs
         from virtmech import sim as vsim
@@ -487,8 +487,9 @@ def format_table(r: dict[str, Any]) -> str:
             )
         lines.append("(vs MuJoCo alone: the loop's wall time over MuJoCo's for the same steps; "
                      "controller: the rendering's own time per cycle; derived: the share of the "
-                     "wall time the loop waited for the log's derived columns (distances from a "
-                     "shape, computed on a second thread alongside the loop); rest vs MuJoCo: "
+                     "wall time the loop spent on or waited for the log's derived columns "
+                     "(distances from a shape, computed on a second thread alongside the "
+                     "loop); rest vs MuJoCo: "
                      "the wall time without those two over MuJoCo's)")
     if r.get("simulation_note"):
         lines.append(f"simulation: {r['simulation_note']}")

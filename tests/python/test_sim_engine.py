@@ -136,7 +136,7 @@ def test_the_derived_columns_are_filled_on_a_second_thread_for_every_row(monkeyp
     r = run(s, chunk_s=1.0, sink=lambda rows, cols: sunk.append(rows.copy()))
     assert r.n_cycles == 2501
     # the stretches before a block's last on the worker, the last on the loop's thread
-    assert {t.split("_")[0] for t in threads} == {"virtmech-derived", "MainThread"}
+    assert {t.split("_")[0] for t in threads} == {"virtmech-sim", "MainThread"}
     p, z = r.cols("px", "py", "pz"), r.cols("sx", "sy", "sz")
     height = (p + 0.08 * z - np.array([0.0, -0.07, -0.02])) @ np.array([0.0, 1.0, 0.0])
     np.testing.assert_allclose(r.col("dist_normal"), height, rtol=0, atol=1e-15)
@@ -171,7 +171,7 @@ def test_the_log_does_not_depend_on_how_the_run_is_split(monkeypatch):
     assert np.array_equal(runs[0].log, runs[2].log, equal_nan=True)
     assert np.abs(runs[0].col("qm0") - runs[0].col("q0")).max() > 1e-5  # the noise is on
     assert {(st, t.split("_")[0], pose) for st, t, pose in plans} == {
-        (True, "MainThread", True), (False, "virtmech-derived", False)}
+        (True, "MainThread", True), (False, "virtmech-sim", False)}
 
 
 def test_an_error_deriving_the_columns_is_raised_by_the_run(monkeypatch):

@@ -400,7 +400,7 @@ class SimResult:
     #: rendering itself, the rest is the simulation around it
     control_time_s: float = 0.0
     #: time spent deriving the log's columns from the logged state (distances from the
-    #: shape, PlanarArm angles, the grip), on a second thread while the loop runs on
+    #: shape, PlanarArm angles, the grip), mostly on a second thread, alongside the loop
     derived_time_s: float = 0.0
     #: of `wall_time_s`, the time the loop spent on the derived columns or waiting for them
     #: (the part of `derived_time_s` not run alongside the loop: each block's last stretch)
@@ -802,11 +802,11 @@ def run(
     # lock while it runs): the next stretch's inputs, unless a segment starts there (its
     # plan needs the handle's pose the stretch before ends with), then the stretch before's
     # derived columns. One worker takes them in that order, so the random draws keep theirs.
-    worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="virtmech-derived")
+    worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="virtmech-sim")
     pending: list[Future] = []  # the derived columns of the current block's stretches
     wall0 = time.perf_counter()
     sink_wall = 0.0  # the sink's time (writing the log): not the simulation's
-    wait_wall = 0.0  # the loop's time waiting for the derived columns (the simulation's)
+    wait_wall = 0.0  # the loop's time on the derived columns or waiting for them
     b0 = 0  # first cycle of the current block
     underived = None  # the rows of the last stretch run, not yet handed to the worker
     ahead: Future | None = None  # this stretch's inputs, made while the last one ran
