@@ -65,6 +65,8 @@ void WeightedProjector::set(const Jacobian& J, const Vector6& w) noexcept {
     }
   }
   finite_ = w_finite_;
+  column_ = m_ == 1;
+  if (column_) set_column();
 }
 
 void WeightedProjector::compute(const Jacobian& J, const Matrix6& W) noexcept {
@@ -176,6 +178,10 @@ void WeightedProjector::compute_all(const Job* jobs, int count) noexcept {
   for (int i = 0; i < count; ++i) {
     WeightedProjector& p = *jobs[i].projector;
     p.set(*jobs[i].J, *jobs[i].w);
+    if (p.column_) {
+      steps[i] = 0;
+      continue;
+    }
     p.deferred_ = p.full_row_rank_certified();
     if (p.deferred_) p.rank_ = p.support_;
     steps[i] = p.deferred_ ? 0 : p.start_factorisation();
@@ -191,8 +197,22 @@ void WeightedProjector::compute_all(const Job* jobs, int count) noexcept {
     if (!any) break;
   }
   for (int i = 0; i < count; ++i) {
-    if (!jobs[i].projector->deferred_) jobs[i].projector->finish_factorisation();
+    const WeightedProjector& p = *jobs[i].projector;
+    if (!p.deferred_ && !p.column_) p.finish_factorisation();
   }
+}
+
+// One column j: A = S j has rank 1 unless it is 0 (the QR's cut is relative to |R_00| = |A|,
+// so it keeps any A != 0), and P(W) = W j j^T / (j^T W j), the fit (j^T W v) / (j^T W j).
+// A squared norm that underflows to 0 or overflows is rank 0, as in the QR.
+void WeightedProjector::set_column() noexcept {
+  deferred_ = false;
+  const Vector6 a = s_.cwiseProduct(J_.col(0));
+  finite_ = finite_ && a.allFinite();
+  const double jwj = a.squaredNorm();
+  rank_ = finite_ && jwj > 0.0 && jwj <= std::numeric_limits<double>::max() ? 1 : 0;
+  wj_ = s_.cwiseProduct(a);
+  inv_jwj_ = rank_ ? 1.0 / jwj : 0.0;
 }
 
 // True when the Gram matrix G = A_w A_w^T of A's k weighted rows shows them of full row rank
@@ -356,6 +376,10 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
   if (!finite_) return Vector6::Constant(std::numeric_limits<double>::quiet_NaN());
   if (rank_ == 0) return Vector6::Zero();
   const Vector6 x = rotated_ ? Vector6(V_.transpose() * x_in) : x_in;
+  if (column_) {
+    const Vector6 out = (J_.col(0).dot(x) * inv_jwj_) * wj_;
+    return rotated_ ? Vector6(V_ * out) : out;
+  }
   if (rank_ == support_ && free_.cwiseProduct(x).isZero(0.0)) {
     // x on the weighted axes only, and sqrt(W) J of full row rank on them: Q1 spans those
     // axes, so P x = S Q1 Q1^T S^+ x is x itself (exactly; the zero-weight rows are 0)
@@ -397,6 +421,10 @@ void WeightedProjector::fit(const Vector6& v, JointVector& theta_dot) const noex
   theta_dot.setZero(m);
   if (!finite_) theta_dot.setConstant(std::numeric_limits<double>::quiet_NaN());
   if (!finite_ || r == 0) return;
+  if (column_) {
+    theta_dot[0] = wj_.dot(rotated_ ? Vector6(V_.transpose() * v) : v) * inv_jwj_;
+    return;
+  }
   // A^+ S v = Pi Z [T^-1 (Q^T S v)_{0:r}; 0]
   const double* a = a_.data();
   Vector6 g = s_.cwiseProduct(rotated_ ? Vector6(V_.transpose() * v) : v);

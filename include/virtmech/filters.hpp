@@ -17,7 +17,10 @@ constexpr double kPinvTolerance = 1e-10;
 /// With S = W^(1/2) and A = S J: W J (J^T W J)^+ = S (A^+)^T, so P(W) x = S (A^+)^T J^T x
 /// without forming J^T W J (which squares the condition number). A is factorised by a
 /// complete orthogonal decomposition, A Pi = Q [T 0; 0 0] Z^T (column-pivoted Householder
-/// QR, then an RZ step only when rank < m). Non-finite J or W give NaN results.
+/// QR, then an RZ step only when rank < m). Non-finite J or W give NaN results. One column
+/// (m = 1, a one-joint mechanism) needs no factorisation: with j = J and A = S j of rank 1
+/// (A != 0), P(W) x = W j (j^T x) / (j^T W j) and the fit is (j^T W v) / (j^T W j), both in
+/// closed form.
 ///
 /// Where the Gram matrix of A's weighted rows certifies that A has full row rank on them
 /// (rank = the number of weights > 0, with a margin of 1e4 over kPinvTolerance), compute()
@@ -71,6 +74,7 @@ class WeightedProjector {
   int start_factorisation() const noexcept;
   bool pivot_step(int k) const noexcept;
   void finish_factorisation() const noexcept;
+  void set_column() noexcept;  // m = 1: the closed form's W j and 1 / (j^T W j)
 
   // A = diag(s_) J_ Pi factorised: R (then T) on and above the diagonal of the first m_
   // columns of a_, zeros below it; Q's reflectors at full length in the columns of q_
@@ -101,6 +105,9 @@ class WeightedProjector {
   bool rotated_ = false;            // full W: everything is in the frame V^T
   mutable bool split_ = true;       // see compute_all()
   mutable bool deferred_ = false;   // rank_ certified, the factorisation not yet done
+  bool column_ = false;             // m = 1: the closed form, no factorisation
+  Vector6 wj_ = Vector6::Zero();    // m = 1: W j
+  double inv_jwj_ = 0.0;            // m = 1: 1 / (j^T W j), 0 at rank 0
 };
 
 /// Range-space filter P(W) = W J (J^T W J)^+ J^T (eq. 5), W diagonal (a 6-vector).
