@@ -89,6 +89,11 @@ ControllerModel make_controller_model(const Device& device, const Mechanism& mec
   m.w_a_support = static_cast<int>((m.w_a.array() > 0.0).count());
   m.w_e_effective = m.w_e + s.secondary_weight * unit;
   m.w_e_star_effective = m.w_e_star + s.secondary_weight * unit;
+  const auto inverse = [](const Vector6& w) {
+    return (w.array() > 0.0).all() ? Vector6(w.cwiseInverse()) : Vector6(Vector6::Zero());
+  };
+  m.w_e_inverse = inverse(m.w_e_effective);
+  m.w_e_star_inverse = inverse(m.w_e_star_effective);
 
   const double k = device.stiffness(), b = device.damping();
   m.kp = s.kp ? checked_weights("kp", *s.kp) : Vector6(k * powered);
@@ -276,16 +281,31 @@ void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
   p.theta = theta;
   p.active = p.result.active;
   free_columns(p.J, p.active, p.J_free);
+  p.has_wrench = mech.constraint_wrench(p.theta.data(), p.pose, p.active, p.wrench);
+}
+
+// The placement's rate follows from the mechanism's constraint wrench n (J_free^T n = 0,
+// rank 5) and needs no factorisation, where the weights are invertible (W_inv != 0).
+bool rate_by_wrench(const Placement& p, const Vector6& W_inv) noexcept {
+  return p.has_wrench && W_inv[0] > 0.0;
 }
 
 // e_dot: the part of the handle's twist the placement does not follow, through the locked
 // Jacobian (docs/theory.md, 3); or the paper's eq. 10. `proj` holds sqrt(W) J_free when
-// `factorised`, else is factorised here.
+// `factorised`, else is factorised here (not needed by the rate from a constraint wrench).
 void error_rate(const ControllerModel& M, const Placement& p, const Vector6& W,
-                const Vector6& v_R, bool factorised, WeightedProjector& proj,
-                Vector6& e_dot) noexcept {
+                const Vector6& W_inv, const Vector6& v_R, bool factorised,
+                WeightedProjector& proj, Vector6& e_dot) noexcept {
   if (M.error_velocity == ErrorVelocity::kHandle) {
     e_dot = -v_R;  // eq. 10
+    return;
+  }
+  if (rate_by_wrench(p, W_inv)) {
+    // J theta_dot - v_R with theta_dot the weighted fit: W (J theta_dot - v_R) is normal to
+    // every column, so along n, and J theta_dot = v_R + e_dot is normal to n:
+    // e_dot = -W^-1 n (n^T v_R) / (n^T W^-1 n)
+    const Vector6 Wn = W_inv.cwiseProduct(p.wrench);
+    e_dot = (-p.wrench.dot(v_R) / p.wrench.dot(Wn)) * Wn;
     return;
   }
   if (!factorised) proj.compute(p.J_free, W);
@@ -299,13 +319,16 @@ void factorise_first_pass(const ControllerModel& M, ControllerData& d) noexcept 
   WeightedProjector::Job jobs[3];
   int n = 0;
   const bool rates = M.error_velocity == ErrorVelocity::kRelative;
-  if (rates) {
+  if (M.w_a_shares_rate) {
     // with W_A a multiple of W_e the rate's factorisation is P(W_A)'s
-    WeightedProjector* rate = M.w_a_shares_rate ? &d.projector_a : &d.rate;
-    jobs[n++] = {rate, &d.nearest.J_free, &M.w_e_effective};
+    jobs[n++] = {&d.projector_a, &d.nearest.J_free, &M.w_e_effective};
+  } else {
+    if (rates && !rate_by_wrench(d.nearest, M.w_e_inverse)) {
+      jobs[n++] = {&d.rate, &d.nearest.J_free, &M.w_e_effective};
+    }
+    jobs[n++] = {&d.projector_a, &d.nearest.J_free, &M.w_a};
   }
-  if (!M.w_a_shares_rate) jobs[n++] = {&d.projector_a, &d.nearest.J_free, &M.w_a};
-  if (rates && M.under_actuated_term) {
+  if (rates && M.under_actuated_term && !rate_by_wrench(d.unpowered, M.w_e_star_inverse)) {
     jobs[n++] = {&d.rate_star, &d.unpowered.J_free, &M.w_e_star_effective};
   }
   WeightedProjector::compute_all(jobs, n);
@@ -325,9 +348,10 @@ std::uint32_t pulling(const Mechanism& mech, const Placement& p, const Vector6& 
   return pull;
 }
 
-void release(std::uint32_t joints, Placement& p) noexcept {
+void release(const Mechanism& mech, std::uint32_t joints, Placement& p) noexcept {
   p.active &= ~joints;
   free_columns(p.J, p.active, p.J_free);
+  p.has_wrench = mech.constraint_wrench(p.theta.data(), p.pose, p.active, p.wrench);
 }
 
 // Null-space term N(W_A)(Kp e + Kv e_dot) (eqs. 7, 9, 11) at the nearest placement, locked
@@ -337,13 +361,16 @@ void null_space_term(const ControllerModel& M, const Mechanism& mech, Controller
   Placement& p = d.nearest;  // (out.error = -p.error: Controller::place wrote it)
   WeightedProjector& rate = M.w_a_shares_rate ? d.projector_a : d.rate;
   for (int pass = 0; pass < 2; ++pass) {
-    error_rate(M, p, M.w_e_effective, d.v_R, pass == 0, rate, out.error_dot);
+    error_rate(M, p, M.w_e_effective, M.w_e_inverse, d.v_R, pass == 0, rate, out.error_dot);
     const Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);
-    if (pass > 0 && !M.w_a_shares_rate) d.projector_a.compute(p.J_free, M.w_a);
+    // (a shared factorisation is error_rate()'s, unless the rate came from the wrench)
+    if (pass > 0 && (!M.w_a_shares_rate || rate_by_wrench(p, M.w_e_inverse))) {
+      d.projector_a.compute(p.J_free, M.w_a);
+    }
     out.wrench_null = d.projector_a.null(F);
     const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_null) : 0u;
     if (!pull) break;
-    release(pull, p);
+    release(mech, pull, p);
   }
 }
 
@@ -366,7 +393,7 @@ void range_space_term(const ControllerModel& M, const Mechanism& mech, Controlle
   }
   std::uint32_t released = 0;
   for (int pass = 0; pass < 2; ++pass) {
-    error_rate(M, p, M.w_e_star_effective, d.v_R, pass == 0, d.rate_star,
+    error_rate(M, p, M.w_e_star_effective, M.w_e_star_inverse, d.v_R, pass == 0, d.rate_star,
                out.error_star_dot);
     const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
     out.wrench_range = P->range(F);
@@ -384,7 +411,7 @@ void range_space_term(const ControllerModel& M, const Mechanism& mech, Controlle
     const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_range) : 0u;
     if (!pull) break;
     released = pull;
-    release(pull, p);
+    release(mech, pull, p);
   }
 }
 

@@ -332,6 +332,20 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
   return true;
 }
 
+bool Probe::constraint_wrench(const double* x, const Pose& T, std::uint32_t locked,
+                              Vector6& n) const noexcept {
+  (void)x;
+  const std::uint32_t contact = unilateral_ ? 1u << 2 : 0u;  // the lift-off joint locked
+  // The wrist's axes (t1, then the turned t2, then the stylus) span every rotation unless
+  // the stylus lies along t1 (its middle angle b at +-pi/2: J has rank 4 there); |cos b| is
+  // |t1 x z|, and 1e-6 keeps clear of the factorisation's rank cut
+  const Eigen::Vector3d z = T.linear().col(2);
+  if (locked != contact || !(tangent_.cross(z).squaredNorm() > 1e-12)) return false;
+  // the tip L z ahead of the handle stays on the plane: the normal force there
+  n << normal_, (length_ * z).cross(normal_);
+  return true;
+}
+
 namespace {
 
 // The weighted optimum of a stylus whose tip is held to `set` (weights w_p, w_r): the

@@ -103,6 +103,9 @@ struct ControllerModel {
   Vector6 kp, kv, w_a, w_e, w_e_star;
   Vector6 w_e_effective;       //!< W_e + secondary_weight * U, as the solver uses it
   Vector6 w_e_star_effective;  //!< W_e* + secondary_weight * U
+  /// 1 / w_e_effective (1 / w_e_star_effective) where every weight is > 0, else all 0: the
+  /// placement's rate from a mechanism's constraint wrench needs the weights invertible
+  Vector6 w_e_inverse, w_e_star_inverse;
   int w_a_support = 0;         //!< task axes W_A weighs (> 0)
   /// W_A is a multiple of W_e + secondary_weight * U (same zeros, ratios equal to rounding)
   /// and the error velocity is kRelative: P(W_A) at the nearest placement is the projector
@@ -173,6 +176,10 @@ struct Placement {
   Vector6 error = Vector6::Zero();
   Jacobian J_free;         //!< J_V without the columns of the active joints
   std::uint32_t active = 0;  //!< joints held at a limit that acts
+  /// the mechanism's constraint wrench at theta for J_free (Mechanism::constraint_wrench):
+  /// J_free^T wrench = 0, J_free of rank 5; has_wrench false where it has none
+  bool has_wrench = false;
+  Vector6 wrench = Vector6::Zero();
   TrackResult result;
 };
 

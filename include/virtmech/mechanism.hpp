@@ -10,6 +10,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -56,6 +57,19 @@ class Mechanism {
   virtual bool place(const Pose& target, const Vector6& w, const JointVector& start,
                      JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
     (void)target, (void)w, (void)start, (void)theta, (void)T, (void)J, (void)e;
+    return false;
+  }
+
+  /// Optional constraint wrench at x: a wrench n ([f; m] about the handle origin, world
+  /// axes, any length) that does no work on any motion of the joints not in `locked` (bit i:
+  /// joint i held at a limit), J_free^T n = 0, where J_free (J without the locked columns)
+  /// has rank 5, so that n spans its left null space. T is the handle pose at x. Returns
+  /// false where it has none (another rank, or not known); the cycle then finds the left null
+  /// space by factorising J_free. With it, the placement's rate needs no factorisation
+  /// (docs/theory.md, section 3). noexcept, allocation-free.
+  virtual bool constraint_wrench(const double* x, const Pose& T, std::uint32_t locked,
+                                 Vector6& n) const noexcept {
+    (void)x, (void)T, (void)locked, (void)n;
     return false;
   }
 
@@ -147,6 +161,11 @@ class Probe final : public ChainMechanism {
   /// Closed form for weights isotropic within position and within rotation (every default).
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
+  /// The plane's normal force at the tip, [n; (L z) x n] (z the stylus), with the tip on
+  /// the plane (the lift-off joint locked when unilateral, no other joint locked) and the
+  /// wrist away from its gimbal lock (|cos b| > 1e-6).
+  bool constraint_wrench(const double* x, const Pose& T, std::uint32_t locked,
+                         Vector6& n) const noexcept override;
 
  private:
   Eigen::Vector3d point_, normal_, tangent_;

@@ -1,6 +1,7 @@
 // The control laws (eqs. 11, 26) and the safety layer.
 #include <gtest/gtest.h>
 
+#include <Eigen/SVD>
 #include <cmath>
 
 #include "test_support.hpp"
@@ -325,4 +326,131 @@ TEST(Controller, WrongSizedInputIsAFaultNotACrash) {
   EXPECT_EQ(out.torque.cwiseAbs().maxCoeff(), 0.0);
   const Eigen::VectorXd q6 = Eigen::VectorXd::Constant(6, 0.3);
   EXPECT_EQ(c.step(q6, dq6, out) & status::kFaultMask, 0u);
+}
+
+namespace {
+
+// J theta_dot - v for the weighted least-squares fit theta_dot = argmin |S (J theta_dot - v)|,
+// S = sqrt(diag(w)), by an SVD: an algorithm independent of the controller's
+Vector6 svd_rate(const Jacobian& J_free, const Vector6& w, const Vector6& v) {
+  const Eigen::MatrixXd S = w.cwiseSqrt().asDiagonal();
+  const Eigen::MatrixXd J = J_free;
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(S * J, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd theta_dot = svd.solve(S * v);
+  return J * theta_dot - v;
+}
+
+Jacobian without(const Jacobian& J, std::uint32_t locked) {
+  Jacobian out(6, 0);
+  for (int i = 0; i < J.cols(); ++i) {
+    if ((locked >> i) & 1u) continue;
+    out.conservativeResize(6, out.cols() + 1);
+    out.col(out.cols() - 1) = J.col(i);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Controller, PlacementRatesAreTheWeightedFitsResidual) {
+  // e_dot and e*_dot are J theta_dot - v_R for the weighted fit of the handle's twist by the
+  // placements' unlocked joints (docs/theory.md, 3), on every cycle of random smooth paths:
+  // a Probe's rate comes from its constraint wrench, a PlanarArm's from its one column, the
+  // rest from the factorisation
+  auto omni = std::make_shared<PhantomOmni>();
+  auto arm = six_dof_arm();
+  const Eigen::Vector3d y = Eigen::Vector3d::UnitY();
+  struct Scene {
+    std::shared_ptr<const Device> device;
+    std::shared_ptr<const Mechanism> mechanism;
+  };
+  const Scene scenes[] = {
+      {omni, std::make_shared<Probe>(Eigen::Vector3d(0, -0.03, 0), y, 0.1, Eigen::Vector3d::Zero())},
+      {omni, std::make_shared<Probe>(Eigen::Vector3d(0, -0.01, 0), y, 0.1, Eigen::Vector3d::Zero(),
+                                     true)},
+      {omni, std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0.0, -0.05), Eigen::Vector3d::UnitZ(),
+                                         0.05, Eigen::Vector3d::UnitX())},
+      {omni, std::make_shared<LineGuide>(Eigen::Vector3d(0, -0.02, 0), Eigen::Vector3d::UnitX(),
+                                         0.1, y)},
+      {arm, std::make_shared<Probe>(Eigen::Vector3d(0.3, 0, 0.1), Eigen::Vector3d::UnitZ(), 0.1,
+                                    Eigen::Vector3d::Zero(), true)},
+  };
+  std::mt19937 rng(61);
+  std::normal_distribution<double> g(0.0, 0.3);
+  int contact = 0, lifted = 0, checked = 0;
+  for (const Scene& sc : scenes) {
+    const Device& dev = *sc.device;
+    const Mechanism& mech = *sc.mechanism;
+    ControllerSettings s = no_ramp();
+    Controller c(sc.device, sc.mechanism, s);
+    const ControllerModel& M = c.model();
+    CycleOutput out;
+    JointVector a = random_within(rng, dev.lower(), dev.upper());
+    for (int segment = 0; segment < 6; ++segment) {
+      const JointVector b = random_within(rng, dev.lower(), dev.upper());
+      for (int k = 0; k < 100; ++k) {
+        const JointVector q = a + (k / 100.0) * (b - a);
+        JointVector dq = (b - a) * 10.0;
+        for (int i = 0; i < dev.dof(); ++i) dq[i] += g(rng);
+        c.step(q.data(), dq.data(), out);
+        ASSERT_EQ(out.status & status::kFaultMask, 0u);
+        Pose T;
+        Jacobian J_R, J;
+        dev.forward_jacobian(q.data(), T, J_R);
+        const Vector6 v = J_R * dq;
+        const double scale = 1e-9 * std::max(1.0, v.norm());
+        mech.forward_jacobian(out.theta.data(), T, J);
+        const Vector6 e_dot = svd_rate(without(J, out.active), M.w_e_effective, v);
+        EXPECT_LE((out.error_dot - e_dot).norm(), scale) << mech.type_name() << " " << k;
+        if (M.under_actuated_term) {
+          mech.forward_jacobian(out.theta_star.data(), T, J);
+          const Vector6 e_star_dot =
+              svd_rate(without(J, out.active_star), M.w_e_star_effective, v);
+          EXPECT_LE((out.error_star_dot - e_star_dot).norm(), scale) << mech.type_name() << k;
+        }
+        if (mech.contact_joint() >= 0) ++((out.active >> mech.contact_joint()) & 1u ? contact : lifted);
+        ++checked;
+      }
+      a = b;
+    }
+  }
+  EXPECT_EQ(checked, 3000);
+  EXPECT_GT(contact, 50);  // the unilateral probes both pressed and lifted
+  EXPECT_GT(lifted, 50);
+}
+
+TEST(Mechanism, ProbesConstraintWrenchDoesNoWorkOnItsMotion) {
+  // J_free^T n = 0 wherever the probe reports one; none where J_free is not of rank 5
+  std::mt19937 rng(62);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  const Eigen::Vector3d n = Eigen::Vector3d(0.2, 1.0, -0.3).normalized();
+  for (const bool unilateral : {false, true}) {
+    const Probe probe(Eigen::Vector3d(0.01, -0.02, 0.03), n, 0.12, Eigen::Vector3d::Zero(),
+                      unilateral);
+    const int wrist = unilateral ? 3 : 2;
+    const std::uint32_t contact = unilateral ? 1u << 2 : 0u;
+    for (int trial = 0; trial < 200; ++trial) {
+      JointVector x(probe.dof());
+      for (int i = 0; i < probe.dof(); ++i) x[i] = u(rng) * (i < wrist ? 0.05 : 1.0);
+      if (unilateral) x[2] = 0.0;  // in contact
+      Pose T;
+      Jacobian J;
+      probe.forward_jacobian(x.data(), T, J);
+      Vector6 w;
+      ASSERT_TRUE(probe.constraint_wrench(x.data(), T, contact, w));
+      const Jacobian J_free = without(J, contact);
+      EXPECT_LE((J_free.transpose() * w).norm(), 1e-14 * J_free.norm() * w.norm()) << trial;
+      // its one constraint: J_free has rank 5 (and with it the lift-off column, rank 6)
+      EXPECT_EQ(Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(J_free)).rank(), 5);
+      EXPECT_GT(w.norm(), 0.9);
+      // another joint locked, or (unilateral) the tip free to lift: not one constraint
+      EXPECT_FALSE(probe.constraint_wrench(x.data(), T, contact | 1u, w));
+      if (unilateral) EXPECT_FALSE(probe.constraint_wrench(x.data(), T, 0u, w));
+      // the wrist's gimbal lock (its middle angle at +-pi/2): J has rank 4
+      x[wrist + 1] = trial % 2 ? M_PI / 2 : -M_PI / 2;
+      probe.forward_jacobian(x.data(), T, J);
+      EXPECT_FALSE(probe.constraint_wrench(x.data(), T, contact, w)) << trial;
+      EXPECT_EQ(Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(without(J, contact))).rank(), 4);
+    }
+  }
 }
