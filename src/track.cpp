@@ -123,12 +123,19 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
   TrackResult result;
   if (options.closed_form && mechanism.place(target, weights, theta0, theta, pose, J, error)) {
     const Vector6 We = weights.cwiseProduct(error);
-    JointVector g;
-    Jacobian D;
-    detail::jacobian_transpose_times(error_derivative(J, error, weights, D) ? D : J, We, g);
     result.converged = true;
     result.residual = std::sqrt(std::max(error.dot(We), 0.0));
-    result.active = active_set(mechanism, theta, g, result.active_upper);
+    // the cost's push on the joints, needed only where one sits on a bound
+    bool on_bound = false;
+    for (int i = 0; i < n; ++i) {
+      on_bound = on_bound || !(theta[i] < mechanism.upper()[i] && theta[i] > mechanism.lower()[i]);
+    }
+    if (on_bound) {
+      JointVector g;
+      Jacobian D;
+      detail::jacobian_transpose_times(error_derivative(J, error, weights, D) ? D : J, We, g);
+      result.active = active_set(mechanism, theta, g, result.active_upper);
+    }
     return result;
   }
   theta = theta0;
