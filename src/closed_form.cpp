@@ -65,27 +65,42 @@ void position_derivatives(const TiltCost& k, double c, double s, double& g1, dou
   g2 = 2.0 * p2 * s * s - dc * c;
 }
 
-// the angle in [0, pi] minimising the position cost, nearest phi_r among minimisers
-Angle position_minimiser(const TiltCost& k, const Angle& phi_r) noexcept {
-  auto from_cosine = [](double c) {
+// The tilt's angles below are measured from phi_r, the handle's own (the stylus's angle from
+// the axis, in [0, pi]), and carry their own cosine and sine: an Angle {y, cos y, sin y} is
+// phi_r + y, whose cosine and sine follow from phi_r's (`base`, {cos phi_r, sin phi_r}) by
+// the angle sum. Neither angle itself is needed: the one atan2 is of their difference.
+Angle absolute(const Angle& y, const Angle& base) noexcept {
+  return {base.x + y.x, base.c * y.c - base.s * y.s, base.s * y.c + base.c * y.s};
+}
+
+// The angle in [0, pi] minimising the position cost, nearest phi_r among minimisers,
+// measured from phi_r (base: phi_r's cosine and sine).
+Angle position_minimiser(const TiltCost& k, const Angle& base) noexcept {
+  constexpr Angle here{0.0, 1.0, 0.0};  // phi_r itself
+  auto from_cosine_sine = [&](double c, double s) {
+    // phi - phi_r in [-pi, pi] (both in [0, pi]): its cosine and sine by the angle difference
+    const double cy = c * base.c + s * base.s, sy = s * base.c - c * base.s;
+    return Angle{std::atan2(sy, cy), cy, sy};
+  };
+  auto from_cosine = [&](double c) {
     c = std::min(1.0, std::max(-1.0, c));
     // (1 - c)(1 + c), not 1 - c^2: the sine keeps its relative accuracy near c = +-1
-    return Angle{std::acos(c), c, std::sqrt((1.0 - c) * (1.0 + c))};
+    return from_cosine_sine(c, std::sqrt((1.0 - c) * (1.0 + c)));
   };
   if (k.sphere) {
-    if (!(k.sb > 0.0)) return phi_r;  // the cost does not depend on the angle
+    if (!(k.sb > 0.0)) return here;  // the cost does not depend on the angle
     const double c0 = (k.sa - k.radius * k.radius) / (2.0 * k.sb);  // rho = radius there
-    if (k.one_sided && phi_r.c <= c0) return phi_r;  // lifted already: zero cost
+    if (k.one_sided && base.c <= c0) return here;  // lifted already: zero cost
     return from_cosine(c0);
   }
   if (k.one_sided) {
-    if (!(k.b * phi_r.c > k.a)) return phi_r;  // already at zero cost
-    return k.b > 0.0 ? from_cosine(k.a / k.b) : phi_r;
+    if (!(k.b * base.c > k.a)) return here;  // already at zero cost
+    return k.b > 0.0 ? from_cosine(k.a / k.b) : here;
   }
   if (k.p2 > 0.0) return from_cosine(-k.p1 / (2.0 * k.p2));
-  if (k.p1 < 0.0) return {0.0, 1.0, 0.0};
-  if (k.p1 > 0.0) return {M_PI, -1.0, 0.0};
-  return phi_r;
+  if (k.p1 < 0.0) return from_cosine_sine(1.0, 0.0);
+  if (k.p1 > 0.0) return from_cosine_sine(-1.0, 0.0);
+  return here;
 }
 
 // The angle a.x + d with its cosine and sine from a's: for |d| < 1e-3 by the angle sum with
@@ -156,9 +171,10 @@ void acos_squared_terms(double y, double s1, double& ang, double& h, double& dh)
 }
 
 // minimiser of f(phi) = w_p g(phi) + w_r (phi - phi_r)^2 between phi0 (g's minimiser) and
-// phi_r, where f' runs from - to +
+// phi_r, where f' runs from - to +; angles measured from phi_r (base: its cosine and sine)
 Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
-                 const Angle& phi_r) noexcept {
+                 const Angle& base) noexcept {
+  constexpr Angle phi_r{0.0, 1.0, 0.0};
   if (phi0.x == phi_r.x || w_p == 0.0) return phi_r;
   if (w_r == 0.0) return phi0;
   const double lo = std::min(phi0.x, phi_r.x), hi = std::max(phi0.x, phi_r.x);
@@ -174,7 +190,8 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
   // Start at the minimiser of the two terms' quadratic models about their minimisers (g's
   // curvature at its minimiser, from the side where it acts): with the weights far apart, as
   // on an under-actuated device, it is within rounding of the root
-  const double c0 = phi0.c, s0 = phi0.s;
+  const Angle at0 = absolute(phi0, base);
+  const double c0 = at0.c, s0 = at0.s;
   double g2_0;  // g'' at phi0, from the side where the cost acts
   if (k.sphere) {
     double P_c, P_cc;
@@ -197,7 +214,8 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
   return bracketed_newton(
       [&](double x, double c, double s, double& f1, double& f2) {
         double g1, g2;
-        position_derivatives(k, c, s, g1, g2);
+        const Angle at = absolute({x, c, s}, base);
+        position_derivatives(k, at.c, at.s, g1, g2);
         f1 = w_p * g1 + 2.0 * w_r * (x - phi_r.x);
         f2 = w_p * g2 + 2.0 * w_r;
       },
@@ -224,28 +242,28 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
   const Eigen::Vector3d u_r = -R_R.col(2);
   Eigen::Vector3d k = u_r.cross(axis);
   const double kn = k.norm(), cr = u_r.dot(axis);
-  const Angle phi_r{std::atan2(kn, cr), cr, kn};
-  const Angle phi = solve_tilt(cost, w_p, w_r, position_minimiser(cost, phi_r), phi_r);
-  if (phi.x == phi_r.x) {
+  const Angle base{0.0, cr, kn};  // phi_r's cosine and sine (the angle itself is not needed)
+  // phi - phi_r (see position_minimiser)
+  const Angle phi = solve_tilt(cost, w_p, w_r, position_minimiser(cost, base), base);
+  if (phi.x == 0.0) {
     R = R_R;
     turn.setZero();
     return;
   }
   // turn u_r toward the axis by phi_r - phi, about u_r x axis
-  const double c = phi_r.c * phi.c + phi_r.s * phi.s;  // cos(phi_r - phi)
-  const double s = phi_r.s * phi.c - phi_r.c * phi.s;  // sin(phi_r - phi)
+  const double c = phi.c, s = -phi.s;  // cos(phi_r - phi), sin(phi_r - phi)
   if (kn < 1e-12) {  // u_r along the axis: tilt toward the hint, about u_r x hint
     const Eigen::Vector3d v = hint();
     Eigen::Vector3d h = v - v.dot(axis) * axis;
     if (h.norm() < 1e-12) h = any_orthogonal(axis);
     const Eigen::Vector3d k_h = u_r.cross(h).normalized();
     R = rotated(R_R, k_h, c, std::abs(s));  // by |phi - phi_r|
-    turn = std::abs(phi_r.x - phi.x) * k_h;
+    turn = std::abs(phi.x) * k_h;
     return;
   }
   k /= kn;
   R = rotated(R_R, k, c, s);
-  turn = (phi_r.x - phi.x) * k;
+  turn = -phi.x * k;
 }
 
 Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u,

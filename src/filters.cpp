@@ -243,6 +243,18 @@ bool WeightedProjector::full_row_rank_certified() const noexcept {
     tr += G[a][a];
   }
   if (!(tr > 0.0) || !std::isfinite(tr)) return false;  // also NaN
+  if (k <= 3) {
+    // det(G) by cofactors, without the factorisation's chain of divisions: G is a Gram
+    // matrix (eigenvalues >= -eps tr by rounding), so det(G) > 1e-11 tr^k / (k - 1)^(k - 1)
+    // >> eps^2 tr^k rules out a pair of negative ones: G is positive definite, as the LDL^T
+    // below checks, and its determinant has errors of a few eps tr^k
+    if (k == 1) return true;
+    if (k == 2) return G[0][0] * G[1][1] - G[1][0] * G[1][0] > 1e-11 * tr * tr;
+    const double det3 = G[0][0] * (G[1][1] * G[2][2] - G[2][1] * G[2][1]) -
+                        G[1][0] * (G[1][0] * G[2][2] - G[2][1] * G[2][0]) +
+                        G[2][0] * (G[1][0] * G[2][1] - G[1][1] * G[2][0]);
+    return 4.0 * det3 > 1e-11 * tr * tr * tr;
+  }
   double L[6][6], D[6], det = 1.0;
   for (int j = 0; j < k; ++j) {
     double d = G[j][j] / tr;
