@@ -236,15 +236,28 @@ Eigen::Matrix3d rotated(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& k, do
 
 }  // namespace
 
-void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
-                     const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
-                     Eigen::Matrix3d& R, Eigen::Vector3d& turn) noexcept {
+TiltSetup tilt_setup(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
+                     const TiltCost& cost) noexcept {
+  TiltSetup t;
   const Eigen::Vector3d u_r = -R_R.col(2);
-  Eigen::Vector3d k = u_r.cross(axis);
-  const double kn = k.norm(), cr = u_r.dot(axis);
-  const Angle base{0.0, cr, kn};  // phi_r's cosine and sine (the angle itself is not needed)
-  // phi - phi_r (see position_minimiser)
-  const Angle phi = solve_tilt(cost, w_p, w_r, position_minimiser(cost, base), base);
+  t.k = u_r.cross(axis);
+  t.kn = t.k.norm();
+  t.cr = u_r.dot(axis);
+  // phi0 - phi_r (see position_minimiser), from phi_r's cosine and sine alone
+  const Angle phi0 = position_minimiser(cost, Angle{0.0, t.cr, t.kn});
+  t.phi0_x = phi0.x;
+  t.phi0_c = phi0.c;
+  t.phi0_s = phi0.s;
+  return t;
+}
+
+void tilt_about_axis(const TiltSetup& t, const Eigen::Matrix3d& R_R,
+                     const Eigen::Vector3d& axis, const TiltCost& cost, double w_p, double w_r,
+                     const LazyDirection& hint, Eigen::Matrix3d& R,
+                     Eigen::Vector3d& turn) noexcept {
+  const Angle base{0.0, t.cr, t.kn};  // phi_r's cosine and sine (the angle itself is not needed)
+  // phi - phi_r
+  const Angle phi = solve_tilt(cost, w_p, w_r, Angle{t.phi0_x, t.phi0_c, t.phi0_s}, base);
   if (phi.x == 0.0) {
     R = R_R;
     turn.setZero();
@@ -252,7 +265,8 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
   }
   // turn u_r toward the axis by phi_r - phi, about u_r x axis
   const double c = phi.c, s = -phi.s;  // cos(phi_r - phi), sin(phi_r - phi)
-  if (kn < 1e-12) {  // u_r along the axis: tilt toward the hint, about u_r x hint
+  if (t.kn < 1e-12) {  // u_r along the axis: tilt toward the hint, about u_r x hint
+    const Eigen::Vector3d u_r = -R_R.col(2);
     const Eigen::Vector3d v = hint();
     Eigen::Vector3d h = v - v.dot(axis) * axis;
     if (h.norm() < 1e-12) h = any_orthogonal(axis);
@@ -261,9 +275,15 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
     turn = std::abs(phi.x) * k_h;
     return;
   }
-  k /= kn;
+  const Eigen::Vector3d k = t.k / t.kn;
   R = rotated(R_R, k, c, s);
   turn = -phi.x * k;
+}
+
+void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
+                     const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
+                     Eigen::Matrix3d& R, Eigen::Vector3d& turn) noexcept {
+  tilt_about_axis(tilt_setup(R_R, axis, cost), R_R, axis, cost, w_p, w_r, hint, R, turn);
 }
 
 Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u,
@@ -941,25 +961,34 @@ double direction(const Eigen::Vector2d& q, double& cos_x, double& sin_x) noexcep
 
 }  // namespace
 
-double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
-                     double c, double w_r, double& cos_x, double& sin_x) noexcept {
+ArcSetup arc_setup(const Eigen::Vector2d& p, const Eigen::Vector2d& o) noexcept {
+  ArcSetup a;
+  a.o = o;
+  a.theta_p = direction(p, a.cp, a.sp);
+  const double cross = p.x() * o.y() - p.y() * o.x(), dot = p.dot(o);
+  a.span = std::atan2(cross, dot);  // theta_o - theta_p in [-pi, pi]
+  a.dir = a.span > 0.0 ? 1.0 : -1.0;
+  a.width = std::abs(a.span);
+  const double n = std::hypot(cross, dot);
+  a.cs = dot / n;
+  a.ss = std::abs(cross) / n;
+  return a;
+}
+
+double arc_minimiser(const ArcSetup& g, double a, double b, double c, double w_r,
+                     double& cos_x, double& sin_x) noexcept {
   // f(x) = -a cos(x - theta_p) + w_r acos(y)^2, y = c + b cos(x - theta_o); both terms grow
   // with the distance to their own minimiser, so f's minimum lies on the short arc between
   // theta_p and theta_o (any other point is farther from both than some point on it)
-  double cp, sp;  // theta_p's cosine and sine
-  const double theta_p = direction(p, cp, sp);
-  const double cross = p.x() * o.y() - p.y() * o.x(), dot = p.dot(o);
-  const double span = std::atan2(cross, dot);  // theta_o - theta_p in [-pi, pi]
-  if (!(a > 0.0) || span == 0.0) return direction(o, cos_x, sin_x);
+  if (!(a > 0.0) || g.span == 0.0) return direction(g.o, cos_x, sin_x);
   if (!(w_r > 0.0) || !(b > 0.0)) {
-    cos_x = cp;
-    sin_x = sp;
-    return theta_p;
+    cos_x = g.cp;
+    sin_x = g.sp;
+    return g.theta_p;
   }
   // on t in [0, |span|] from theta_p toward theta_o: f' runs from - to +. With x - theta_p =
   // dir t and x - theta_o = dir (t - |span|), one sincos of t per step gives both terms
-  const double dir = span > 0.0 ? 1.0 : -1.0, width = std::abs(span);
-  const double n = std::hypot(cross, dot), cs = dot / n, ss = std::abs(cross) / n;
+  const double dir = g.dir, width = g.width, cs = g.cs, ss = g.ss;
   // Start at the minimiser of the two terms' quadratic models: a t^2 / 2 and
   // w_r b (|span| - t)^2 (acos(c + b cos x)^2 ~ b x^2 near its minimum). Strictly inside,
   // since at an end f' may vanish without a minimum there. Within a quarter turn both terms
@@ -983,9 +1012,14 @@ double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::
         f2 = a * ct - 2.0 * w_r * (dh * y1 * y1 + h * y2);
       },
       0.0, width, advanced(end, t0 - end.x));
-  cos_x = cp * t.c - dir * sp * t.s;  // x = theta_p + dir t
-  sin_x = sp * t.c + dir * cp * t.s;
-  return theta_p + dir * t.x;
+  cos_x = g.cp * t.c - dir * g.sp * t.s;  // x = theta_p + dir t
+  sin_x = g.sp * t.c + dir * g.cp * t.s;
+  return g.theta_p + dir * t.x;
+}
+
+double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
+                     double c, double w_r, double& cos_x, double& sin_x) noexcept {
+  return arc_minimiser(arc_setup(p, o), a, b, c, w_r, cos_x, sin_x);
 }
 
 Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3d& start,

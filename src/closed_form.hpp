@@ -65,6 +65,23 @@ void tilt_about_axis(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
                      const TiltCost& cost, double w_p, double w_r, const LazyDirection& hint,
                      Eigen::Matrix3d& R, Eigen::Vector3d& turn) noexcept;
 
+/// What tilt_about_axis derives from R_R, the axis and the cost alone, before the weights:
+/// the stylus's turn axis and its angle from the axis (cosine and sine), and the position
+/// cost's minimiser measured from that angle (its difference, cosine and sine). Shared by
+/// the cycle's two placements of one handle pose.
+struct TiltSetup {
+  Eigen::Vector3d k;  // u_R x axis
+  double kn = 0.0, cr = 1.0;  // |u_R x axis|, u_R . axis
+  double phi0_x = 0.0, phi0_c = 1.0, phi0_s = 0.0;
+};
+TiltSetup tilt_setup(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& axis,
+                     const TiltCost& cost) noexcept;
+/// tilt_about_axis from its setup (the same R_R, axis and cost).
+void tilt_about_axis(const TiltSetup& setup, const Eigen::Matrix3d& R_R,
+                     const Eigen::Vector3d& axis, const TiltCost& cost, double w_p, double w_r,
+                     const LazyDirection& hint, Eigen::Matrix3d& R,
+                     Eigen::Vector3d& turn) noexcept;
+
 /// The handle orientation R_R turned by the least rotation that takes its stylus's tip-to-
 /// handle direction -R_R z to the unit vector u (about u_R x u; a half turn about any axis
 /// orthogonal to u_R where u = -u_R); `turn` as for tilt_about_axis.
@@ -178,6 +195,20 @@ bool surface_stylus_newton(const Surface& surface, const Eigen::Vector3d& p_R,
 /// joint's pose and Jacobian.
 double arc_minimiser(double a, const Eigen::Vector2d& p, double b, const Eigen::Vector2d& o,
                      double c, double w_r, double& cos_x, double& sin_x) noexcept;
+
+/// What arc_minimiser derives from p and o alone, before the weights: theta_p (with its
+/// cosine and sine), the short arc's sign and width from theta_p to theta_o (its cosine and
+/// sine). Shared by the cycle's two placements.
+struct ArcSetup {
+  Eigen::Vector2d o = Eigen::Vector2d::Zero();
+  double theta_p = 0.0, cp = 1.0, sp = 0.0;
+  double span = 0.0;  // theta_o - theta_p in [-pi, pi]
+  double dir = 1.0, width = 0.0, cs = 1.0, ss = 0.0;
+};
+ArcSetup arc_setup(const Eigen::Vector2d& p, const Eigen::Vector2d& o) noexcept;
+/// arc_minimiser from its setup (the same p and o).
+double arc_minimiser(const ArcSetup& setup, double a, double b, double c, double w_r,
+                     double& cos_x, double& sin_x) noexcept;
 
 /// std::round(t) written out: on baseline x86-64 std::round is a library call, and the
 /// placements take several a cycle. Exact (t - trunc(t) has no rounding error); NaN and

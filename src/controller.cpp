@@ -258,14 +258,12 @@ void free_columns(const Jacobian& J, std::uint32_t active, Jacobian& J_free) noe
   }
 }
 
-// Places the mechanism for the handle pose with weights W (eqs. 18-20), warm-started, and
-// records the active set: joints held at a limit are locked (their columns leave J_free).
-void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
-           const Vector6& W, bool first, Placement& p) noexcept {
+// The placement's start: the last placement moved on by its last change (placements follow
+// the handle smoothly, so this starts second-order close), when that change is between two
+// converged placements; the first cycle after a start, reset or fault starts where it is.
+JointVector placement_start(const ControllerModel& M, const Mechanism& mech, const Pose& target,
+                            const Vector6& W, bool first, const Placement& p) noexcept {
   const TrackOptions& opts = first ? M.track_initial : M.track;
-  // warm start: the last placement moved on by its last change (placements follow the
-  // handle smoothly, so this starts second-order close), when that change is between two
-  // converged placements; the first cycle after a start, reset or fault starts where it is
   JointVector theta0 =
       !first && p.extrapolate ? warm_start(mech, opts, p.theta, p.theta_prev) : p.theta;
   if (first) {
@@ -273,8 +271,43 @@ void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
     mech.seed(target, W, theta0);
     theta0 = theta0.cwiseMax(mech.lower()).cwiseMin(mech.upper());
   }
+  return theta0;
+}
+
+void placed(const Mechanism& mech, bool first, const JointVector& theta, Placement& p) noexcept;
+
+// Places the mechanism for the handle pose with weights W (eqs. 18-20), warm-started, and
+// records the active set: joints held at a limit are locked (their columns leave J_free).
+void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
+           const Vector6& W, bool first, Placement& p) noexcept {
+  const TrackOptions& opts = first ? M.track_initial : M.track;
+  const JointVector theta0 = placement_start(M, mech, target, W, first, p);
   JointVector theta;
   p.result = detail::track(mech, target, theta0, W, opts, theta, p.pose, p.J, p.error);
+  placed(mech, first, theta, p);
+}
+
+// Both placements of a cycle after its first in one closed form (Mechanism::place_pair),
+// which shares what depends on the handle pose alone; false where the mechanism has none.
+bool place_pair(const ControllerModel& M, const Mechanism& mech, const Pose& target,
+                Placement& a, Placement& b) noexcept {
+  if (!M.track.closed_form) return false;
+  const JointVector start_a = placement_start(M, mech, target, M.w_e_effective, false, a);
+  const JointVector start_b = placement_start(M, mech, target, M.w_e_star_effective, false, b);
+  JointVector theta_a, theta_b;
+  const PlacementIO io_a{&M.w_e_effective, &start_a, &theta_a, &a.pose, &a.J, &a.error};
+  const PlacementIO io_b{&M.w_e_star_effective, &start_b, &theta_b, &b.pose, &b.J, &b.error};
+  if (!mech.place_pair(target, io_a, io_b)) return false;
+  a.result = detail::closed_form_result(mech, M.w_e_effective, theta_a, a.J, a.error);
+  b.result = detail::closed_form_result(mech, M.w_e_star_effective, theta_b, b.J, b.error);
+  placed(mech, false, theta_a, a);
+  placed(mech, false, theta_b, b);
+  return true;
+}
+
+// A placement's bookkeeping once theta, its pose, Jacobian, error and result are in: the warm
+// start's history, the active set and J_free, the constraint wrench.
+void placed(const Mechanism& mech, bool first, const JointVector& theta, Placement& p) noexcept {
   p.extrapolate = !first && p.result.converged && p.converged;
   p.converged = p.result.converged;
   p.theta_prev = first ? theta : p.theta;
@@ -713,11 +746,15 @@ std::uint32_t Controller::place_cycle(const double* q, const double* dq,
   d.q_cycle = Eigen::Map<const JointVector>(q, dev.dof());
   out.handle_pose = d.handle_pose;
 
-  // the two placements (eqs. 18-20, 25)
-  virtmech::place(M, mech, d.handle_pose, M.w_e_effective, d.first, d.nearest);
-  if (M.under_actuated_term) {
-    if (d.first) d.unpowered.theta = d.nearest.theta;
-    virtmech::place(M, mech, d.handle_pose, M.w_e_star_effective, d.first, d.unpowered);
+  // the two placements (eqs. 18-20, 25): in one closed form where the mechanism has it (the
+  // first cycle's un-powered placement starts from the nearest, so that one in turn)
+  if (!(M.under_actuated_term && !d.first &&
+        virtmech::place_pair(M, mech, d.handle_pose, d.nearest, d.unpowered))) {
+    virtmech::place(M, mech, d.handle_pose, M.w_e_effective, d.first, d.nearest);
+    if (M.under_actuated_term) {
+      if (d.first) d.unpowered.theta = d.nearest.theta;
+      virtmech::place(M, mech, d.handle_pose, M.w_e_star_effective, d.first, d.unpowered);
+    }
   }
   d.first = false;
   placement_outputs(M, d, out);

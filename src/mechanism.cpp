@@ -164,16 +164,40 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
   rest_ = T.linear();
 }
 
-bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& start,
-                      JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
-  double w_p, w_r;
-  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+namespace {
+
+// place_pair() of a closed form for weights isotropic per block, split into the target's
+// setup and a weighting's solve: false unless both weightings have the closed form
+template <typename Setup, typename Solve>
+bool isotropic_pair(const PlacementIO& a, const PlacementIO& b, const Setup& setup,
+                    const Solve& solve) noexcept {
+  double wp_a, wr_a, wp_b, wr_b;
+  if (!detail::isotropic_blocks(*a.w, wp_a, wr_a) || !detail::isotropic_blocks(*b.w, wp_b, wr_b)) {
+    return false;
+  }
+  const auto g = setup();
+  solve(g, wp_a, wr_a, a);
+  solve(g, wp_b, wr_b, b);
+  return true;
+}
+
+}  // namespace
+
+// What both placements of one handle pose share: the handle's distance from the pivot in
+// the plane, the rotation's terms, and the arc's ends (detail::arc_setup)
+struct PlanarArm::Setup {
+  double r = 0.0, b = 0.0, c = 0.0;
+  detail::ArcSetup arc;
+};
+
+PlanarArm::Setup PlanarArm::setup(const Pose& target) const noexcept {
+  Setup g;
   // position: |pivot + L R_n(x) d - p_R|^2 = const - 2 L r cos(x - theta_p)
   const Eigen::Vector3d v = target.translation() - pivot_;
   const double vx = v.dot(zero_direction_), vy = v.dot(normal_.cross(zero_direction_));
   // (plain square roots: lengths and traces far from overflow; below 1e-154, where the
   // squares underflow, a term that small is as good as absent)
-  const double r = std::sqrt(vx * vx + vy * vy);
+  g.r = std::sqrt(vx * vx + vy * vy);
   // rotation: with M = R_0 R_R^T, tr(R_n(x) M) = n'Mn + A cos x + B sin x, and the angle
   // between R_n(x) R_0 and R_R has cosine (tr - 1) / 2; B = tr([n]x M) written out
   const Eigen::Matrix3d M = rest_ * target.linear().transpose();
@@ -181,10 +205,17 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
   const double A = M.trace() - nMn;
   const double B = normal_.dot(
       Eigen::Vector3d(M(1, 2) - M(2, 1), M(2, 0) - M(0, 2), M(0, 1) - M(1, 0)));
+  g.b = 0.5 * std::sqrt(A * A + B * B);
+  g.c = 0.5 * (nMn - 1.0);
+  g.arc = detail::arc_setup(Eigen::Vector2d(vx, vy), Eigen::Vector2d(A, B));
+  return g;
+}
+
+void PlanarArm::solve(const Setup& g, const Pose& target, double w_p, double w_r,
+                      const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
+                      Vector6& e) const noexcept {
   double c, s;
-  const double x = detail::arc_minimiser(2.0 * w_p * length_ * r, Eigen::Vector2d(vx, vy),
-                                         0.5 * std::sqrt(A * A + B * B), Eigen::Vector2d(A, B),
-                                         0.5 * (nMn - 1.0), w_r, c, s);
+  const double x = detail::arc_minimiser(g.arc, 2.0 * w_p * length_ * g.r, g.b, g.c, w_r, c, s);
   theta.resize(1);
   // nearest the start
   theta[0] = x + 2.0 * M_PI * detail::round_half_away((start[0] - x) / (2.0 * M_PI));
@@ -201,7 +232,23 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
   J.resize(6, 1);
   J.col(0) << normal_.cross(arm), normal_;
   e = pose_error(target, T);
+}
+
+bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& start,
+                      JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
+  double w_p, w_r;
+  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+  solve(setup(target), target, w_p, w_r, start, theta, T, J, e);
   return true;
+}
+
+bool PlanarArm::place_pair(const Pose& target, const PlacementIO& a,
+                           const PlacementIO& b) const noexcept {
+  return isotropic_pair(
+      a, b, [&] { return setup(target); },
+      [&](const Setup& g, double w_p, double w_r, const PlacementIO& io) {
+        solve(g, target, w_p, w_r, *io.start, *io.theta, *io.T, *io.J, *io.e);
+      });
 }
 
 // ---------------------------------------------------------------------------------------
@@ -294,31 +341,44 @@ void place_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& origin, const 
 
 }  // namespace
 
-bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start,
-                  JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
-  double w_p, w_r;
-  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
-  const int wrist = unilateral_ ? 3 : 2;  // index of the first wrist joint
-  const Eigen::Matrix3d B = tip_base(normal_, tangent_);
-  const Eigen::Vector3d p_R = target.translation();
-  const double d = normal_.dot(p_R - point_);  // handle height above the plane [m]
-  detail::TiltCost cost;  // tip height d - L cos(phi), phi the stylus's angle from n
+// What both placements of one handle pose share: the tip's frame, the tilt's cost (the tip's
+// height as the stylus tilts) and its setup (detail::tilt_setup)
+struct Probe::Setup {
+  Eigen::Matrix3d B;
+  detail::TiltCost cost;
+  detail::TiltSetup tilt;
+};
+
+Probe::Setup Probe::setup(const Pose& target) const noexcept {
+  Setup g;
+  g.B = tip_base(normal_, tangent_);
+  const double d = normal_.dot(target.translation() - point_);  // handle height [m]
+  // tip height d - L cos(phi), phi the stylus's angle from n
   if (unilateral_) {
-    cost.one_sided = true;
-    cost.a = d;
-    cost.b = length_;
+    g.cost.one_sided = true;
+    g.cost.a = d;
+    g.cost.b = length_;
   } else {
-    cost.p2 = length_ * length_;
-    cost.p1 = -2.0 * d * length_;
+    g.cost.p2 = length_ * length_;
+    g.cost.p1 = -2.0 * d * length_;
   }
+  g.tilt = detail::tilt_setup(target.linear(), normal_, g.cost);
+  return g;
+}
+
+void Probe::solve(const Setup& g, const Pose& target, double w_p, double w_r,
+                  const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
+                  Vector6& e) const noexcept {
+  const int wrist = unilateral_ ? 3 : 2;  // index of the first wrist joint
+  const Eigen::Matrix3d& B = g.B;
   Eigen::Matrix3d R;
   Eigen::Vector3d turn;
   const auto start_direction = [&] { return detail::wrist_direction(B, start.data() + wrist); };
-  detail::tilt_about_axis(target.linear(), normal_, cost, w_p, w_r,
+  detail::tilt_about_axis(g.tilt, target.linear(), normal_, g.cost, w_p, w_r,
                           detail::LazyDirection(start_direction), R, turn);
   // the tip below the handle for that orientation, brought onto the plane (or left in
   // front of it when one-sided)
-  Eigen::Vector3d tip = p_R + length_ * R.col(2);
+  Eigen::Vector3d tip = target.translation() + length_ * R.col(2);
   const double height = normal_.dot(tip - point_);
   // in contact the tip sits exactly on the plane, the lift-off joint on its bound
   const double lift = unilateral_ && height > 1e-12 * length_ ? height : 0.0;
@@ -329,7 +389,23 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
   if (unilateral_) theta[2] = lift;
   constexpr int kSlides[3] = {0, 1, 2};  // t1, t2, n
   place_wrist(B, point_, kSlides, length_, target, R, turn, start, wrist, theta, T, J, e);
+}
+
+bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start,
+                  JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
+  double w_p, w_r;
+  if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
+  solve(setup(target), target, w_p, w_r, start, theta, T, J, e);
   return true;
+}
+
+bool Probe::place_pair(const Pose& target, const PlacementIO& a,
+                       const PlacementIO& b) const noexcept {
+  return isotropic_pair(
+      a, b, [&] { return setup(target); },
+      [&](const Setup& g, double w_p, double w_r, const PlacementIO& io) {
+        solve(g, target, w_p, w_r, *io.start, *io.theta, *io.T, *io.J, *io.e);
+      });
 }
 
 bool Probe::constraint_wrench(const double* x, const Pose& T, std::uint32_t locked,

@@ -115,6 +115,27 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
   return detail::track(mechanism, target, theta0, weights, options, theta, pose, J, error);
 }
 
+TrackResult detail::closed_form_result(const Mechanism& mechanism, const Vector6& weights,
+                                       const JointVector& theta, const Jacobian& J,
+                                       const Vector6& error) noexcept {
+  TrackResult result;
+  const Vector6 We = weights.cwiseProduct(error);
+  result.converged = true;
+  result.residual = std::sqrt(std::max(error.dot(We), 0.0));
+  // the cost's push on the joints, needed only where one sits on a bound
+  bool on_bound = false;
+  for (int i = 0; i < mechanism.dof(); ++i) {
+    on_bound = on_bound || !(theta[i] < mechanism.upper()[i] && theta[i] > mechanism.lower()[i]);
+  }
+  if (on_bound) {
+    JointVector g;
+    Jacobian D;
+    detail::jacobian_transpose_times(error_derivative(J, error, weights, D) ? D : J, We, g);
+    result.active = active_set(mechanism, theta, g, result.active_upper);
+  }
+  return result;
+}
+
 TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
                           const JointVector& theta0, const Vector6& weights,
                           const TrackOptions& options, JointVector& theta, Pose& pose,
@@ -122,21 +143,7 @@ TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
   const int n = mechanism.dof();
   TrackResult result;
   if (options.closed_form && mechanism.place(target, weights, theta0, theta, pose, J, error)) {
-    const Vector6 We = weights.cwiseProduct(error);
-    result.converged = true;
-    result.residual = std::sqrt(std::max(error.dot(We), 0.0));
-    // the cost's push on the joints, needed only where one sits on a bound
-    bool on_bound = false;
-    for (int i = 0; i < n; ++i) {
-      on_bound = on_bound || !(theta[i] < mechanism.upper()[i] && theta[i] > mechanism.lower()[i]);
-    }
-    if (on_bound) {
-      JointVector g;
-      Jacobian D;
-      detail::jacobian_transpose_times(error_derivative(J, error, weights, D) ? D : J, We, g);
-      result.active = active_set(mechanism, theta, g, result.active_upper);
-    }
-    return result;
+    return closed_form_result(mechanism, weights, theta, J, error);
   }
   theta = theta0;
   clamp_to_limits(mechanism, theta);

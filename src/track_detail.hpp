@@ -13,4 +13,10 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
                   const Vector6& weights, const TrackOptions& options, JointVector& theta,
                   Pose& pose, Jacobian& J, Vector6& error) noexcept;
 
+/// What track() reports for a closed-form placement (Mechanism::place or place_pair): theta
+/// with J and error there, converged, its residual and the joints held at a limit.
+TrackResult closed_form_result(const Mechanism& mechanism, const Vector6& weights,
+                               const JointVector& theta, const Jacobian& J,
+                               const Vector6& error) noexcept;
+
 }  // namespace virtmech::detail

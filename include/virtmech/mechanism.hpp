@@ -20,6 +20,17 @@
 
 namespace virtmech {
 
+/// One placement's weights and warm start, and where its result goes (Mechanism::place_pair):
+/// place()'s arguments for one weighting.
+struct PlacementIO {
+  const Vector6* w;
+  const JointVector* start;
+  JointVector* theta;
+  Pose* T;
+  Jacobian* J;
+  Vector6* e;
+};
+
 /// A virtual mechanism (interface).
 class Mechanism {
  public:
@@ -57,6 +68,17 @@ class Mechanism {
   virtual bool place(const Pose& target, const Vector6& w, const JointVector& start,
                      JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
     (void)target, (void)w, (void)start, (void)theta, (void)T, (void)J, (void)e;
+    return false;
+  }
+
+  /// Optional closed-form placement of one target for two weightings at once: the cycle's
+  /// nearest and un-powered placements (eqs. 18-20, 25), which share all that depends on the
+  /// target alone. Each result is place()'s for its weights and start. Returns false where
+  /// place() would for either (then neither result is used, and the cycle places each on its
+  /// own); the default returns false. noexcept, allocation-free.
+  virtual bool place_pair(const Pose& target, const PlacementIO& a,
+                          const PlacementIO& b) const noexcept {
+    (void)target, (void)a, (void)b;
     return false;
   }
 
@@ -133,8 +155,16 @@ class PlanarArm final : public ChainMechanism {
   /// Closed form for weights isotropic within position and within rotation.
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
+  /// Both placements sharing the target's geometry (the arc's ends): place()'s results.
+  bool place_pair(const Pose& target, const PlacementIO& a,
+                  const PlacementIO& b) const noexcept override;
 
  private:
+  struct Setup;
+  Setup setup(const Pose& target) const noexcept;
+  void solve(const Setup& g, const Pose& target, double w_p, double w_r,
+             const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
+             Vector6& e) const noexcept;
   Eigen::Vector3d pivot_, normal_, zero_direction_;
   double length_;
   Eigen::Matrix3d rest_;  // the handle's orientation at theta = 0
@@ -161,6 +191,9 @@ class Probe final : public ChainMechanism {
   /// Closed form for weights isotropic within position and within rotation (every default).
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
+  /// Both placements sharing the target's geometry (the tilt's setup): place()'s results.
+  bool place_pair(const Pose& target, const PlacementIO& a,
+                  const PlacementIO& b) const noexcept override;
   /// The plane's normal force at the tip, [n; (L z) x n] (z the stylus), with the tip on
   /// the plane (the lift-off joint locked when unilateral, no other joint locked) and the
   /// wrist away from its gimbal lock (|cos b| > 1e-6).
@@ -168,6 +201,11 @@ class Probe final : public ChainMechanism {
                          Vector6& n) const noexcept override;
 
  private:
+  struct Setup;
+  Setup setup(const Pose& target) const noexcept;
+  void solve(const Setup& g, const Pose& target, double w_p, double w_r,
+             const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
+             Vector6& e) const noexcept;
   Eigen::Vector3d point_, normal_, tangent_;
   double length_;
   bool unilateral_;

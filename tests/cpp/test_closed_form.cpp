@@ -261,11 +261,16 @@ TEST(LineCertificates, TheCapAboutTheHandleIsConvexWhereCertified) {
 // A place() hook returns the pose, Jacobian and pose error it builds from its solution
 // (without walking the chain): they must be the mechanism's own forward_jacobian and
 // pose_error at the joint values it returns, for every mechanism with a hook.
-TEST(PlaceHooks, ReturnTheChainsPoseJacobianAndError) {
+namespace {
+
+const Vector3d kHookNormal = Vector3d(0.2, 1.0, -0.3).normalized(), kHookPoint(0.01, -0.02, 0.03);
+
+// every mechanism with a place() hook, about kHookPoint
+std::vector<std::pair<const char*, std::shared_ptr<virtmech::Mechanism>>> hook_mechanisms() {
   using namespace virtmech;
-  const Vector3d n = Vector3d(0.2, 1.0, -0.3).normalized(), p0(0.01, -0.02, 0.03);
+  const Vector3d n = kHookNormal, p0 = kHookPoint;
   const Vector3d t = n.cross(Vector3d::UnitZ()).normalized();
-  const std::vector<std::pair<const char*, std::shared_ptr<Mechanism>>> mechanisms = {
+  return {
       {"PlanarArm", std::make_shared<PlanarArm>(p0, n, 0.1, t)},
       {"Probe", std::make_shared<Probe>(p0, n, 0.1, Vector3d(Vector3d::Zero()))},
       {"Probe/unilateral", std::make_shared<Probe>(p0, n, 0.1, Vector3d(Vector3d::Zero()), true)},
@@ -278,6 +283,14 @@ TEST(PlaceHooks, ReturnTheChainsPoseJacobianAndError) {
                          vmtest::test_letter(Vector3d(0.0, 0.0, -0.02)), 0.1,
                          Vector3d(Vector3d::UnitZ()))},
   };
+}
+
+}  // namespace
+
+TEST(PlaceHooks, ReturnTheChainsPoseJacobianAndError) {
+  using namespace virtmech;
+  const Vector3d p0 = kHookPoint;
+  const auto mechanisms = hook_mechanisms();
   std::mt19937 rng(23);
   std::normal_distribution<double> g(0.0, 1.0);
   for (const auto& [name, mech] : mechanisms) {
@@ -363,4 +376,64 @@ TEST(PlaceHooks, SurfaceProbeOnANurbsPatchReturnsTheChainsPoseJacobianAndError) 
     EXPECT_GT(placed, 80) << unilateral;  // (declined: near an edge)
     if (unilateral) EXPECT_GT(lifted, 30);
   }
+}
+
+// place_pair() is place() for each of its two weightings, bit for bit (the shared setup is
+// the same arithmetic), where a mechanism has it (PlanarArm, Probe); false where either
+// weighting has no closed form, and false by default.
+TEST(PlaceHooks, PlacePairIsPlaceForEachWeighting) {
+  using namespace virtmech;
+  const Vector3d p0 = kHookPoint;
+  std::mt19937 rng(29);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  const double L = 0.1;
+  const Vector6 w_e = (Vector6() << 1, 1, 1, 1e-6 * L * L, 1e-6 * L * L, 1e-6 * L * L).finished();
+  const Vector6 w_star = (Vector6() << 1e-6, 1e-6, 1e-6, L * L, L * L, L * L).finished();
+  const Vector6 mixed = (Vector6() << 1, 2, 1, L * L, L * L, L * L).finished();  // no closed form
+  int paired = 0;
+  for (const auto& [name, mech] : hook_mechanisms()) {
+    const std::string type = mech->type_name();
+    const bool has_pair = type == "PlanarArm" || type == "Probe";
+    for (int k = 0; k < 300; ++k) {
+      Pose target = Pose::Identity();
+      target.linear() = so3_exp(Vector3d(g(rng), g(rng), g(rng)));
+      target.translation() = p0 + 0.04 * Vector3d(g(rng), g(rng), g(rng));
+      // random weights too, isotropic per block, on a third of the trials
+      Vector6 wa = w_e, wb = w_star;
+      if (k % 3 == 2) {
+        const double a = std::exp(u(rng)), b = std::exp(u(rng));
+        wa << a, a, a, b, b, b;
+        wb << b, b, b, a, a, a;
+      }
+      JointVector sa(mech->dof()), sb(mech->dof());
+      for (int i = 0; i < mech->dof(); ++i) sa[i] = 0.3 * g(rng), sb[i] = 0.3 * g(rng);
+      JointVector theta_a, theta_b, ref_a, ref_b;
+      Pose Ta, Tb, Ra, Rb;
+      Jacobian Ja, Jb, JRa, JRb;
+      Vector6 ea, eb, rea, reb;
+      const PlacementIO io_a{&wa, &sa, &theta_a, &Ta, &Ja, &ea};
+      const PlacementIO io_b{&wb, &sb, &theta_b, &Tb, &Jb, &eb};
+      if (!has_pair) {
+        EXPECT_FALSE(mech->place_pair(target, io_a, io_b)) << name;  // the default
+        continue;
+      }
+      ++paired;
+      ASSERT_TRUE(mech->place_pair(target, io_a, io_b)) << name;
+      ASSERT_TRUE(mech->place(target, wa, sa, ref_a, Ra, JRa, rea));
+      ASSERT_TRUE(mech->place(target, wb, sb, ref_b, Rb, JRb, reb));
+      EXPECT_EQ(theta_a, ref_a) << name << " " << k;
+      EXPECT_EQ(theta_b, ref_b) << name << " " << k;
+      EXPECT_TRUE(Ta.matrix() == Ra.matrix() && Tb.matrix() == Rb.matrix()) << name << " " << k;
+      EXPECT_EQ(Ja, JRa) << name << " " << k;
+      EXPECT_EQ(Jb, JRb) << name << " " << k;
+      EXPECT_EQ(ea, rea) << name << " " << k;
+      EXPECT_EQ(eb, reb) << name << " " << k;
+      // either weighting without a closed form: no pair
+      const PlacementIO io_mixed{&mixed, &sb, &theta_b, &Tb, &Jb, &eb};
+      EXPECT_FALSE(mech->place_pair(target, io_a, io_mixed)) << name;
+      EXPECT_FALSE(mech->place_pair(target, io_mixed, io_a)) << name;
+    }
+  }
+  EXPECT_EQ(paired, 900);  // PlanarArm, Probe and the unilateral Probe
 }
