@@ -102,11 +102,12 @@ def test_the_run_reports_its_controllers_share_of_the_wall_time():
     s = load("omni-contact").with_overrides(duration_s=0.3)
     r = run(s)
     # every cycle steps the controller, which takes some time but not all of the loop's;
-    # the derived columns take some time, and the loop spends a part of it (the last
-    # stretch of each block is its own)
+    # the derived columns take some time, and the loop spends some of its own on them (the
+    # last stretch of each block, and waiting for the worker's), apart from the stepping
+    # (not bounded by derived_time_s: a wait also holds the worker's wake-up)
     assert 0.0 < r.control_time_s < r.wall_time_s
-    assert 0.0 < r.derived_wait_s <= r.derived_time_s
-    assert r.derived_wait_s < r.wall_time_s - r.control_time_s
+    assert 0.0 < r.derived_time_s
+    assert 0.0 < r.derived_wait_s < r.wall_time_s - r.control_time_s
 
 
 def test_the_derived_columns_are_filled_on_a_second_thread_for_every_row(monkeypatch):

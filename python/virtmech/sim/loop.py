@@ -402,8 +402,10 @@ class SimResult:
     #: time spent deriving the log's columns from the logged state (distances from the
     #: shape, PlanarArm angles, the grip), mostly on a second thread, alongside the loop
     derived_time_s: float = 0.0
-    #: of `wall_time_s`, the time the loop spent on the derived columns or waiting for them
-    #: (the part of `derived_time_s` not run alongside the loop: each block's last stretch)
+    #: of `wall_time_s`, the time the loop spent on the derived columns or waiting for them:
+    #: each block's last stretch, filled by the loop itself, and the waits for the worker's
+    #: stretches (a wait also holds the worker's wake-up, so this may exceed the filling's
+    #: own time)
     derived_wait_s: float = 0.0
 
     def blocks(self, names, rows: int | None = None):
