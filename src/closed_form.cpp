@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Eigenvalues>
 
@@ -118,10 +119,11 @@ Angle advanced(const Angle& a, double d) noexcept {
 
 // The root of f' in [lo, hi] where f' runs from - (at lo) to + (at hi), from `start`
 // inside (with its cosine and sine): Newton steps kept inside the shrinking bracket,
-// bisection where Newton would leave it. derivatives(x, cos x, sin x, f1, f2) gives f'(x)
-// and f''(x); each step carries the cosine and sine on (advanced(): a sincos only for
-// steps of 1e-3 or more, and after a bisection); the root is returned with its cosine and
-// sine, which the callers need next.
+// bisection where Newton would leave it. derivatives(x, cos x, sin x, f1, f2, f3) gives
+// f'(x), f''(x) and f'''(x) (NaN where f is not smooth enough for it to bound the step's
+// error); each step carries the cosine and sine on (advanced(): a sincos only for steps of
+// 1e-3 or more, and after a bisection); the root is returned with its cosine and sine,
+// which the callers need next.
 template <typename Derivatives>
 Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
                        const Angle& start) noexcept {
@@ -129,8 +131,8 @@ Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
   Angle at = start;
   for (int it = 0; it < 100; ++it) {
     const double x = at.x, c = at.c, s = at.s;
-    double f1, f2;
-    derivatives(x, c, s, f1, f2);
+    double f1, f2, f3;
+    derivatives(x, c, s, f1, f2, f3);
     if (f1 < 0.0) lo = x;
     else if (f1 > 0.0) hi = x;
     else return at;
@@ -141,10 +143,14 @@ Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
       // leave by rounding: x is an end of it now), or one that leaves an error at rounding
       // level. Newton's error falls as e' = K e^2, and with K ~ |step| / last_step^2 from
       // the last two steps the step leaves about |step|^3 / last_step^2; stopping there
-      // saves the step after, which would only move x by rounding noise.
+      // saves the step after, which would only move x by rounding noise. With f''' known the
+      // step leaves |f'''| step^2 / (2 f''), Newton's own error term (f''' at a point
+      // within the step of x: for steps this short, x's to a fraction of itself), which ends
+      // the first step too where the start is that close (a tenth of rounding: a margin).
       const double a = std::abs(step);
-      if (a <= rounding ||
-          (next > lo && next < hi && next_newton_step_below(a, last_step, rounding))) {
+      const bool leaves_rounding = std::abs(f3) * a * a <= 0.2 * rounding * f2;  // (NaN: no)
+      if (a <= rounding || (next > lo && next < hi &&
+                            (leaves_rounding || next_newton_step_below(a, last_step, rounding)))) {
         return advanced(at, -step);
       }
       if (next > lo && next < hi) {
@@ -212,12 +218,16 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
   // its cosine and sine from the nearer end's (usually within rounding of it)
   const Angle& end = std::abs(x0 - phi0.x) <= std::abs(x0 - phi_r.x) ? phi0 : phi_r;
   return bracketed_newton(
-      [&](double x, double c, double s, double& f1, double& f2) {
+      [&](double x, double c, double s, double& f1, double& f2, double& f3) {
         double g1, g2;
         const Angle at = absolute({x, c, s}, base);
         position_derivatives(k, at.c, at.s, g1, g2);
         f1 = w_p * g1 + 2.0 * w_r * (x - phi_r.x);
         f2 = w_p * g2 + 2.0 * w_r;
+        // g''' of p2 c^2 + p1 c: s (8 p2 c + p1); a one-sided cost's has a jump at its edge,
+        // a sphere's is not written out
+        f3 = k.sphere || k.one_sided ? std::numeric_limits<double>::quiet_NaN()
+                                     : w_p * at.s * (8.0 * k.p2 * at.c + k.p1);
       },
       lo, hi, advanced(end, x0 - end.x));
 }
@@ -1001,7 +1011,8 @@ double arc_minimiser(const ArcSetup& g, double a, double b, double c, double w_r
   // its cosine and sine from the nearer end's: t = 0, or t = width (cosine and sine cs, ss)
   const Angle end = t0 <= width - t0 ? Angle{0.0, 1.0, 0.0} : Angle{width, cs, ss};
   const Angle t = bracketed_newton(
-      [&](double, double ct, double st, double& f1, double& f2) {
+      [&](double, double ct, double st, double& f1, double& f2, double& f3) {
+        f3 = std::numeric_limits<double>::quiet_NaN();  // (not written out)
         const double so = dir * (st * cs - ct * ss), co = ct * cs + st * ss;
         const double y = std::min(1.0, std::max(-1.0, c + b * co));
         const double s1 = std::sqrt(std::max(0.0, 1.0 - y * y));  // sin of the angle

@@ -437,3 +437,57 @@ TEST(PlaceHooks, PlacePairIsPlaceForEachWeighting) {
   }
   EXPECT_EQ(paired, 900);  // PlanarArm, Probe and the unilateral Probe
 }
+
+// The Probe's tilt (the stylus's angle phi from the plane's normal) is the minimiser of
+// f(phi) = w_p (d - L cos phi)^2 + w_r (phi - phi_R)^2 to rounding: its Newton's method stops
+// only where the step leaves an error below rounding (also on its first step, by f''').
+// Reference: f' = 0 bisected in long double between g's minimiser and phi_R.
+TEST(PlaceHooks, ProbesTiltIsTheMinimiserToRounding) {
+  using namespace virtmech;
+  const Vector3d n = kHookNormal, p0 = kHookPoint;
+  const double L = 0.1;
+  const Probe probe(p0, n, L, Vector3d(Vector3d::Zero()));
+  std::mt19937 rng(31);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(-0.9, 0.9);
+  const double sw = 1e-6;  // the cycle's weights: one block dominant, the other secondary;
+  // and both alike, where Newton takes several steps from its start
+  const Vector6 weights[3] = {
+      (Vector6() << 1, 1, 1, sw * L * L, sw * L * L, sw * L * L).finished(),
+      (Vector6() << sw, sw, sw, L * L, L * L, L * L).finished(),
+      (Vector6() << 1, 1, 1, L * L, L * L, L * L).finished()};
+  double worst = 0.0;
+  for (int k = 0; k < 600; ++k) {
+    Pose target = Pose::Identity();
+    target.linear() = so3_exp(Vector3d(g(rng), g(rng), g(rng)));
+    const Vector3d off = 0.04 * Vector3d(g(rng), g(rng), g(rng));
+    target.translation() = p0 + off - off.dot(n) * n + u(rng) * L * n;  // |d| < 0.9 L
+    const Vector6& w = weights[k % 3];
+    JointVector theta;
+    Pose T;
+    Jacobian J;
+    Vector6 e;
+    ASSERT_TRUE(probe.place(target, w, probe.home(), theta, T, J, e));
+    // the 1-D problem in long double
+    using LD = long double;
+    const LD d = n.dot(target.translation() - p0), wp = w[0], wr = w[3] / (L * L) * (L * L);
+    const Vector3d u_r = -target.linear().col(2);
+    const LD phi_r = std::atan2(static_cast<LD>(u_r.cross(n).norm()), static_cast<LD>(u_r.dot(n)));
+    const LD phi0 = std::acos(std::min<LD>(1, std::max<LD>(-1, d / L)));
+    auto f1 = [&](LD phi) {
+      return wp * 2 * (d - L * std::cos(phi)) * L * std::sin(phi) + 2 * wr * (phi - phi_r);
+    };
+    LD lo = std::min(phi0, phi_r), hi = std::max(phi0, phi_r);
+    ASSERT_LT(f1(lo), 0) << k;
+    ASSERT_GT(f1(hi), 0) << k;
+    for (int it = 0; it < 200; ++it) {
+      const LD mid = (lo + hi) / 2;
+      (f1(mid) < 0 ? lo : hi) = mid;
+    }
+    const double turn_ref = static_cast<double>(std::abs((lo + hi) / 2 - phi_r));
+    const double err = std::abs(e.tail<3>().norm() - turn_ref);  // e's rotation: -turn
+    worst = std::max(worst, err);
+    EXPECT_LE(err, 4e-15 * (1.0 + turn_ref)) << k;  // (the inputs' own rounding: ~1e-15)
+  }
+  RecordProperty("worst_error", std::to_string(worst));
+}
