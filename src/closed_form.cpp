@@ -1012,7 +1012,6 @@ double arc_minimiser(const ArcSetup& g, double a, double b, double c, double w_r
   const Angle end = t0 <= width - t0 ? Angle{0.0, 1.0, 0.0} : Angle{width, cs, ss};
   const Angle t = bracketed_newton(
       [&](double, double ct, double st, double& f1, double& f2, double& f3) {
-        f3 = std::numeric_limits<double>::quiet_NaN();  // (not written out)
         const double so = dir * (st * cs - ct * ss), co = ct * cs + st * ss;
         const double y = std::min(1.0, std::max(-1.0, c + b * co));
         const double s1 = std::sqrt(std::max(0.0, 1.0 - y * y));  // sin of the angle
@@ -1021,6 +1020,13 @@ double arc_minimiser(const ArcSetup& g, double a, double b, double c, double w_r
         const double y1 = -b * so, y2 = -b * co;
         f1 = a * st - dir * 2.0 * w_r * h * y1;  // d/dt = dir d/dx
         f2 = a * ct - 2.0 * w_r * (dh * y1 * y1 + h * y2);
+        // f''' = -a sin t - 2 w_r dy (d2h dy^2 + 3 dh y'' - h), dy = dir y1 (y''' = -dy);
+        // d2h = d^2 h / dy^2 = (ang s1^2 + 3 y (ang y - s1)) / s1^5, 4/15 as ang -> 0 (its
+        // terms cancel there: the limit below 1e-2, within 1e-4 of it)
+        const double d2h = ang < 1e-2 ? 4.0 / 15.0
+                                      : (ang * s1 * s1 + 3.0 * y * (ang * y - s1)) /
+                                            (s1 * s1 * s1 * s1 * s1);
+        f3 = -a * st - 2.0 * w_r * dir * y1 * (d2h * y1 * y1 + 3.0 * dh * y2 - h);
       },
       0.0, width, advanced(end, t0 - end.x));
   cos_x = g.cp * t.c - dir * g.sp * t.s;  // x = theta_p + dir t

@@ -491,3 +491,63 @@ TEST(PlaceHooks, ProbesTiltIsTheMinimiserToRounding) {
   }
   RecordProperty("worst_error", std::to_string(worst));
 }
+
+// The PlanarArm's angle is a root of its weighted cost's derivative to rounding (its
+// Newton's method, like the tilt's, stops by f'''): C'(x) changes sign within 2e-14 of it,
+// C(x) = w_p |p_R - h(x)|^2 + w_r angle(R_R, R(x))^2 and C' written out in long double.
+TEST(PlaceHooks, PlanarArmsAngleIsTheMinimiserToRounding) {
+  using namespace virtmech;
+  using LD = long double;
+  using V3 = Eigen::Matrix<LD, 3, 1>;
+  using M3 = Eigen::Matrix<LD, 3, 3>;
+  const Vector3d n = kHookNormal, p0 = kHookPoint;
+  const Vector3d d0 = n.cross(Vector3d::UnitZ()).normalized();
+  const double L = 0.1;
+  const PlanarArm arm(p0, n, L, d0);
+  Pose rest;
+  const double zero = 0.0;
+  arm.forward(&zero, rest);
+  const V3 nn = n.cast<LD>(), dd = d0.cast<LD>(), e2 = n.cross(d0).cast<LD>();
+  const M3 R0 = rest.linear().cast<LD>();
+  M3 N;
+  N << 0, -nn.z(), nn.y(), nn.z(), 0, -nn.x(), -nn.y(), nn.x(), 0;
+  std::mt19937 rng(37);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double sw = 1e-6;
+  const Vector6 weights[3] = {
+      (Vector6() << 1, 1, 1, sw * L * L, sw * L * L, sw * L * L).finished(),
+      (Vector6() << sw, sw, sw, L * L, L * L, L * L).finished(),
+      (Vector6() << 1, 1, 1, L * L, L * L, L * L).finished()};
+  int checked = 0;
+  for (int k = 0; k < 600; ++k) {
+    Pose target = Pose::Identity();
+    target.linear() = so3_exp(Vector3d(g(rng), g(rng), g(rng)));
+    target.translation() = p0 + 0.06 * Vector3d(g(rng), g(rng), g(rng));
+    const Vector6& w = weights[k % 3];
+    JointVector theta;
+    Pose T;
+    Jacobian J;
+    Vector6 e;
+    ASSERT_TRUE(arm.place(target, w, arm.home(), theta, T, J, e));
+    const V3 p_R = target.translation().cast<LD>();
+    const M3 R_R = target.linear().cast<LD>();
+    const LD wp = w[0], wr = w[3];
+    auto dC = [&](LD x) {  // C'(x)
+      const M3 Rn = Eigen::AngleAxis<LD>(x, nn).toRotationMatrix();
+      const V3 h = p0.cast<LD>() + L * (std::cos(x) * dd + std::sin(x) * e2);
+      const V3 h1 = L * (-std::sin(x) * dd + std::cos(x) * e2);
+      const LD tr = (R_R.transpose() * Rn * R0).trace();
+      const LD tr1 = (R_R.transpose() * N * Rn * R0).trace();
+      const LD ang = std::acos(std::min<LD>(1, std::max<LD>(-1, (tr - 1) / 2)));
+      return -2 * wp * (p_R - h).dot(h1) - wr * ang / std::sin(ang) * tr1;
+    };
+    const LD x = theta[0], delta = 2e-14 * (1.0 + std::abs(theta[0]));
+    const LD ang = std::acos(std::min<LD>(1, std::max<LD>(-1, ((R_R.transpose() *
+        Eigen::AngleAxis<LD>(x, nn).toRotationMatrix() * R0).trace() - 1) / 2)));
+    if (ang < 1e-6 || ang > M_PI - 1e-6) continue;  // (the angle's derivative degenerates)
+    ++checked;
+    EXPECT_LT(dC(x - delta), 0) << k;
+    EXPECT_GT(dC(x + delta), 0) << k;
+  }
+  EXPECT_GT(checked, 550);
+}
