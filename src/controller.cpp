@@ -314,7 +314,7 @@ void placed(const Mechanism& mech, bool first, const JointVector& theta, Placeme
   p.theta = theta;
   p.active = p.result.active;
   free_columns(p.J, p.active, p.J_free);
-  p.has_wrench = mech.constraint_wrench(p.theta.data(), p.pose, p.active, p.wrench);
+  p.has_wrench = mech.constraint_wrench(p.theta.data(), p.pose, p.J, p.active, p.wrench);
 }
 
 // The placement's rate follows from the mechanism's constraint wrench n (J_free^T n = 0,
@@ -384,7 +384,7 @@ std::uint32_t pulling(const Mechanism& mech, const Placement& p, const Vector6& 
 void release(const Mechanism& mech, std::uint32_t joints, Placement& p) noexcept {
   p.active &= ~joints;
   free_columns(p.J, p.active, p.J_free);
-  p.has_wrench = mech.constraint_wrench(p.theta.data(), p.pose, p.active, p.wrench);
+  p.has_wrench = mech.constraint_wrench(p.theta.data(), p.pose, p.J, p.active, p.wrench);
 }
 
 // Null-space term N(W_A)(Kp e + Kv e_dot) (eqs. 7, 9, 11) at the nearest placement, locked

@@ -408,9 +408,9 @@ bool Probe::place_pair(const Pose& target, const PlacementIO& a,
       });
 }
 
-bool Probe::constraint_wrench(const double* x, const Pose& T, std::uint32_t locked,
-                              Vector6& n) const noexcept {
-  (void)x;
+bool Probe::constraint_wrench(const double* x, const Pose& T, const Jacobian& J,
+                              std::uint32_t locked, Vector6& n) const noexcept {
+  (void)x, (void)J;
   const std::uint32_t contact = unilateral_ ? 1u << 2 : 0u;  // the lift-off joint locked
   // The wrist's axes (t1, then the turned t2, then the stylus) span every rotation unless
   // the stylus lies along t1 (its middle angle b at +-pi/2: J has rank 4 there); |cos b| is

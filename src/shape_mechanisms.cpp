@@ -236,6 +236,28 @@ void SurfaceProbe::forward_jacobian(const double* x, Pose& T, Jacobian& J) const
   surface_columns(d, f, h, T.translation() - tip, unilateral_, J);
 }
 
+bool SurfaceProbe::constraint_wrench(const double* x, const Pose& T, const Jacobian& J,
+                                     std::uint32_t locked, Vector6& n) const noexcept {
+  (void)x;
+  const std::uint32_t contact = unilateral_ ? 1u << 2 : 0u;  // the lift-off joint locked
+  if (locked != contact) return false;
+  // the tip, L z ahead of the handle, moves with v + w x (L z) along each column: along the
+  // two surface joints by S_u and S_v (on the surface: no lift), along the wrist's not at all
+  const Eigen::Vector3d z = T.linear().col(2), r = length_ * z;
+  const Eigen::Vector3d Su = J.col(0).head<3>() + J.col(0).tail<3>().cross(r);
+  const Eigen::Vector3d Sv = J.col(1).head<3>() + J.col(1).tail<3>().cross(r);
+  const Eigen::Vector3d m = Su.cross(Sv);
+  const double mn = m.norm();
+  // a regular point (J has rank 5 only there), and the wrist's first axis t1 = S_u / |S_u|
+  // away from the stylus (its gimbal lock)
+  if (!(mn > 1e-6 * Su.norm() * Sv.norm()) || !(Su.cross(z).norm() > 1e-6 * Su.norm())) {
+    return false;
+  }
+  const Eigen::Vector3d N = m / mn;
+  n << N, r.cross(N);
+  return true;
+}
+
 void SurfaceProbe::seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept {
   const Eigen::Vector3d tip = tip_of(target, length_);
   Eigen::Vector3d point;

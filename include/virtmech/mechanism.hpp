@@ -85,13 +85,13 @@ class Mechanism {
   /// Optional constraint wrench at x: a wrench n ([f; m] about the handle origin, world
   /// axes, any length) that does no work on any motion of the joints not in `locked` (bit i:
   /// joint i held at a limit), J_free^T n = 0, where J_free (J without the locked columns)
-  /// has rank 5, so that n spans its left null space. T is the handle pose at x. Returns
-  /// false where it has none (another rank, or not known); the cycle then finds the left null
-  /// space by factorising J_free. With it, the placement's rate needs no factorisation
-  /// (docs/theory.md, section 3). noexcept, allocation-free.
-  virtual bool constraint_wrench(const double* x, const Pose& T, std::uint32_t locked,
-                                 Vector6& n) const noexcept {
-    (void)x, (void)T, (void)locked, (void)n;
+  /// has rank 5, so that n spans its left null space. T and J are the handle pose and the
+  /// Jacobian at x. Returns false where it has none (another rank, or not known); the cycle
+  /// then finds the left null space by factorising J_free. With it, the placement's rate
+  /// needs no factorisation (docs/theory.md, section 5). noexcept, allocation-free.
+  virtual bool constraint_wrench(const double* x, const Pose& T, const Jacobian& J,
+                                 std::uint32_t locked, Vector6& n) const noexcept {
+    (void)x, (void)T, (void)J, (void)locked, (void)n;
     return false;
   }
 
@@ -197,8 +197,8 @@ class Probe final : public ChainMechanism {
   /// The plane's normal force at the tip, [n; (L z) x n] (z the stylus), with the tip on
   /// the plane (the lift-off joint locked when unilateral, no other joint locked) and the
   /// wrist away from its gimbal lock (|cos b| > 1e-6).
-  bool constraint_wrench(const double* x, const Pose& T, std::uint32_t locked,
-                         Vector6& n) const noexcept override;
+  bool constraint_wrench(const double* x, const Pose& T, const Jacobian& J,
+                         std::uint32_t locked, Vector6& n) const noexcept override;
 
  private:
   struct Setup;
@@ -309,6 +309,12 @@ class SurfaceProbe final : public Mechanism {
   /// the surface where its nearest point is tracked: Gauss-Newton then.
   bool place(const Pose& target, const Vector6& w, const JointVector& start,
              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept override;
+  /// The surface's normal force at the tip, [N; (L z) x N], N = S_u x S_v normalised (S_u,
+  /// S_v: the tip's velocities along the two surface joints, from J), with the tip on the
+  /// surface (the lift-off joint locked when unilateral, no other joint locked), away from
+  /// a degenerate point of the surface and from the wrist's gimbal lock (both 1e-6).
+  bool constraint_wrench(const double* x, const Pose& T, const Jacobian& J,
+                         std::uint32_t locked, Vector6& n) const noexcept override;
 
  private:
   bool place_on_surface(const Pose& target, double w_p, double w_r, const JointVector& start,

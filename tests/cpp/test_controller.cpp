@@ -355,11 +355,13 @@ Jacobian without(const Jacobian& J, std::uint32_t locked) {
 TEST(Controller, PlacementRatesAreTheWeightedFitsResidual) {
   // e_dot and e*_dot are J theta_dot - v_R for the weighted fit of the handle's twist by the
   // placements' unlocked joints (docs/theory.md, 3), on every cycle of random smooth paths:
-  // a Probe's rate comes from its constraint wrench, a PlanarArm's from its one column, the
-  // rest from the factorisation
+  // a Probe's and a SurfaceProbe's rate comes from its constraint wrench, a PlanarArm's from
+  // its one column, the rest from the factorisation
   auto omni = std::make_shared<PhantomOmni>();
   auto arm = six_dof_arm();
   const Eigen::Vector3d y = Eigen::Vector3d::UnitY();
+  Eigen::Matrix3d horizontal;  // the patch's normal (local z) along world y
+  horizontal << 1, 0, 0, 0, 0, 1, 0, -1, 0;
   struct Scene {
     std::shared_ptr<const Device> device;
     std::shared_ptr<const Mechanism> mechanism;
@@ -374,6 +376,10 @@ TEST(Controller, PlacementRatesAreTheWeightedFitsResidual) {
                                          0.1, y)},
       {arm, std::make_shared<Probe>(Eigen::Vector3d(0.3, 0, 0.1), Eigen::Vector3d::UnitZ(), 0.1,
                                     Eigen::Vector3d::Zero(), true)},
+      {omni, std::make_shared<SurfaceProbe>(test_patch(Eigen::Vector3d(0, -0.03, 0), horizontal),
+                                            0.1)},
+      {omni, std::make_shared<SurfaceProbe>(
+                 std::make_shared<Sphere>(Eigen::Vector3d(0, -0.09, 0), 0.06, y), 0.1, true)},
   };
   std::mt19937 rng(61);
   std::normal_distribution<double> g(0.0, 0.3);
@@ -414,7 +420,7 @@ TEST(Controller, PlacementRatesAreTheWeightedFitsResidual) {
       a = b;
     }
   }
-  EXPECT_EQ(checked, 3000);
+  EXPECT_EQ(checked, 4200);
   EXPECT_GT(contact, 50);  // the unilateral probes both pressed and lifted
   EXPECT_GT(lifted, 50);
 }
@@ -437,19 +443,19 @@ TEST(Mechanism, ProbesConstraintWrenchDoesNoWorkOnItsMotion) {
       Jacobian J;
       probe.forward_jacobian(x.data(), T, J);
       Vector6 w;
-      ASSERT_TRUE(probe.constraint_wrench(x.data(), T, contact, w));
+      ASSERT_TRUE(probe.constraint_wrench(x.data(), T, J, contact, w));
       const Jacobian J_free = without(J, contact);
       EXPECT_LE((J_free.transpose() * w).norm(), 1e-14 * J_free.norm() * w.norm()) << trial;
       // its one constraint: J_free has rank 5 (and with it the lift-off column, rank 6)
       EXPECT_EQ(Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(J_free)).rank(), 5);
       EXPECT_GT(w.norm(), 0.9);
       // another joint locked, or (unilateral) the tip free to lift: not one constraint
-      EXPECT_FALSE(probe.constraint_wrench(x.data(), T, contact | 1u, w));
-      if (unilateral) EXPECT_FALSE(probe.constraint_wrench(x.data(), T, 0u, w));
+      EXPECT_FALSE(probe.constraint_wrench(x.data(), T, J, contact | 1u, w));
+      if (unilateral) EXPECT_FALSE(probe.constraint_wrench(x.data(), T, J, 0u, w));
       // the wrist's gimbal lock (its middle angle at +-pi/2): J has rank 4
       x[wrist + 1] = trial % 2 ? M_PI / 2 : -M_PI / 2;
       probe.forward_jacobian(x.data(), T, J);
-      EXPECT_FALSE(probe.constraint_wrench(x.data(), T, contact, w)) << trial;
+      EXPECT_FALSE(probe.constraint_wrench(x.data(), T, J, contact, w)) << trial;
       EXPECT_EQ(Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(without(J, contact))).rank(), 4);
     }
   }
@@ -472,9 +478,9 @@ class OneAtATime final : public Mechanism {
              Pose& T, Jacobian& J, Vector6& e) const noexcept override {
     return inner_->place(target, w, start, theta, T, J, e);
   }
-  bool constraint_wrench(const double* x, const Pose& T, std::uint32_t locked,
-                         Vector6& n) const noexcept override {
-    return inner_->constraint_wrench(x, T, locked, n);
+  bool constraint_wrench(const double* x, const Pose& T, const Jacobian& J,
+                         std::uint32_t locked, Vector6& n) const noexcept override {
+    return inner_->constraint_wrench(x, T, J, locked, n);
   }
 
  private:
@@ -519,4 +525,43 @@ TEST(Controller, PlacementsInOneClosedFormAreTheSingleOnes) {
       a = b;
     }
   }
+}
+
+TEST(Mechanism, SurfaceProbesConstraintWrenchDoesNoWorkOnItsMotion) {
+  // the surface's normal force at the tip: J_free^T n = 0 with J_free of rank 5, on a NURBS
+  // patch and a sphere, bilateral and unilateral (tip on the surface); none with the tip free
+  // to lift or another joint locked
+  std::mt19937 rng(63);
+  std::uniform_real_distribution<double> u01(0.0, 1.0), ang(-1.2, 1.2);
+  const auto patch = test_patch(Eigen::Vector3d(0.01, -0.02, 0.03));
+  const auto sphere = std::make_shared<Sphere>(Eigen::Vector3d(0.0, 0.0, -0.05), 0.05);
+  int checked = 0;
+  for (const std::shared_ptr<const Surface>& surface :
+       std::vector<std::shared_ptr<const Surface>>{patch, sphere}) {
+    for (const bool unilateral : {false, true}) {
+      const SurfaceProbe probe(surface, 0.12, unilateral);
+      const int wrist = unilateral ? 3 : 2;
+      const std::uint32_t contact = unilateral ? 1u << 2 : 0u;
+      const Eigen::Vector2d lo = surface->lower(), hi = surface->upper();
+      for (int trial = 0; trial < 100; ++trial) {
+        JointVector x(probe.dof());
+        x[0] = lo[0] + (0.05 + 0.9 * u01(rng)) * (hi[0] - lo[0]);
+        x[1] = lo[1] + (0.1 + 0.8 * u01(rng)) * (hi[1] - lo[1]);  // (away from a pole)
+        if (unilateral) x[2] = 0.0;
+        for (int i = wrist; i < wrist + 3; ++i) x[i] = ang(rng);
+        Pose T;
+        Jacobian J;
+        probe.forward_jacobian(x.data(), T, J);
+        Vector6 w;
+        ASSERT_TRUE(probe.constraint_wrench(x.data(), T, J, contact, w)) << trial;
+        ++checked;
+        const Jacobian J_free = without(J, contact);
+        EXPECT_LE((J_free.transpose() * w).norm(), 1e-13 * J_free.norm() * w.norm()) << trial;
+        EXPECT_EQ(Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(J_free)).rank(), 5);
+        EXPECT_FALSE(probe.constraint_wrench(x.data(), T, J, contact | 1u, w));
+        if (unilateral) EXPECT_FALSE(probe.constraint_wrench(x.data(), T, J, 0u, w));
+      }
+    }
+  }
+  EXPECT_EQ(checked, 400);
 }
