@@ -164,24 +164,6 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
   rest_ = T.linear();
 }
 
-namespace {
-
-// place_pair() of a closed form for weights isotropic per block, split into the target's
-// setup and a weighting's solve: false unless both weightings have the closed form
-template <typename Setup, typename Solve>
-bool isotropic_pair(const PlacementIO& a, const PlacementIO& b, const Setup& setup,
-                    const Solve& solve) noexcept {
-  double wp_a, wr_a, wp_b, wr_b;
-  if (!detail::isotropic_blocks(*a.w, wp_a, wr_a) || !detail::isotropic_blocks(*b.w, wp_b, wr_b)) {
-    return false;
-  }
-  const auto g = setup();
-  solve(g, wp_a, wr_a, a);
-  solve(g, wp_b, wr_b, b);
-  return true;
-}
-
-}  // namespace
 
 // What both placements of one handle pose share: the handle's distance from the pivot in
 // the plane, the rotation's terms, and the arc's ends (detail::arc_setup)
@@ -211,11 +193,14 @@ PlanarArm::Setup PlanarArm::setup(const Pose& target) const noexcept {
   return g;
 }
 
-void PlanarArm::solve(const Setup& g, const Pose& target, double w_p, double w_r,
-                      const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
-                      Vector6& e) const noexcept {
-  double c, s;
-  const double x = detail::arc_minimiser(g.arc, 2.0 * w_p * length_ * g.r, g.b, g.c, w_r, c, s);
+double PlanarArm::angle(const Setup& g, double w_p, double w_r, double& c,
+                        double& s) const noexcept {
+  return detail::arc_minimiser(g.arc, 2.0 * w_p * length_ * g.r, g.b, g.c, w_r, c, s);
+}
+
+void PlanarArm::finish(const Pose& target, double x, double c, double s,
+                       const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
+                       Vector6& e) const noexcept {
   theta.resize(1);
   // nearest the start
   theta[0] = x + 2.0 * M_PI * detail::round_half_away((start[0] - x) / (2.0 * M_PI));
@@ -238,17 +223,26 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
                       JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
-  solve(setup(target), target, w_p, w_r, start, theta, T, J, e);
+  double c, s;
+  const double x = angle(setup(target), w_p, w_r, c, s);
+  finish(target, x, c, s, start, theta, T, J, e);
   return true;
 }
 
 bool PlanarArm::place_pair(const Pose& target, const PlacementIO& a,
                            const PlacementIO& b) const noexcept {
-  return isotropic_pair(
-      a, b, [&] { return setup(target); },
-      [&](const Setup& g, double w_p, double w_r, const PlacementIO& io) {
-        solve(g, target, w_p, w_r, *io.start, *io.theta, *io.T, *io.J, *io.e);
-      });
+  double wp_a, wr_a, wp_b, wr_b;
+  if (!detail::isotropic_blocks(*a.w, wp_a, wr_a) || !detail::isotropic_blocks(*b.w, wp_b, wr_b)) {
+    return false;
+  }
+  const Setup g = setup(target);
+  // (one after the other: side by side, as Probe::place_pair does, measured slower here)
+  double c, s;
+  const double xa = angle(g, wp_a, wr_a, c, s);
+  finish(target, xa, c, s, *a.start, *a.theta, *a.T, *a.J, *a.e);
+  const double xb = angle(g, wp_b, wr_b, c, s);
+  finish(target, xb, c, s, *b.start, *b.theta, *b.T, *b.J, *b.e);
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -366,16 +360,20 @@ Probe::Setup Probe::setup(const Pose& target) const noexcept {
   return g;
 }
 
-void Probe::solve(const Setup& g, const Pose& target, double w_p, double w_r,
-                  const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
-                  Vector6& e) const noexcept {
+void Probe::tilt(const Setup& g, const Pose& target, double w_p, double w_r,
+                 const JointVector& start, Eigen::Matrix3d& R,
+                 Eigen::Vector3d& turn) const noexcept {
   const int wrist = unilateral_ ? 3 : 2;  // index of the first wrist joint
-  const Eigen::Matrix3d& B = g.B;
-  Eigen::Matrix3d R;
-  Eigen::Vector3d turn;
-  const auto start_direction = [&] { return detail::wrist_direction(B, start.data() + wrist); };
+  const auto start_direction = [&] { return detail::wrist_direction(g.B, start.data() + wrist); };
   detail::tilt_about_axis(g.tilt, target.linear(), normal_, g.cost, w_p, w_r,
                           detail::LazyDirection(start_direction), R, turn);
+}
+
+void Probe::finish(const Setup& g, const Pose& target, const Eigen::Matrix3d& R,
+                   const Eigen::Vector3d& turn, const JointVector& start, JointVector& theta,
+                   Pose& T, Jacobian& J, Vector6& e) const noexcept {
+  const int wrist = unilateral_ ? 3 : 2;
+  const Eigen::Matrix3d& B = g.B;
   // the tip below the handle for that orientation, brought onto the plane (or left in
   // front of it when one-sided)
   Eigen::Vector3d tip = target.translation() + length_ * R.col(2);
@@ -395,17 +393,30 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
                   JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept {
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
-  solve(setup(target), target, w_p, w_r, start, theta, T, J, e);
+  const Setup g = setup(target);
+  Eigen::Matrix3d R;
+  Eigen::Vector3d turn;
+  tilt(g, target, w_p, w_r, start, R, turn);
+  finish(g, target, R, turn, start, theta, T, J, e);
   return true;
 }
 
 bool Probe::place_pair(const Pose& target, const PlacementIO& a,
                        const PlacementIO& b) const noexcept {
-  return isotropic_pair(
-      a, b, [&] { return setup(target); },
-      [&](const Setup& g, double w_p, double w_r, const PlacementIO& io) {
-        solve(g, target, w_p, w_r, *io.start, *io.theta, *io.T, *io.J, *io.e);
-      });
+  double wp_a, wr_a, wp_b, wr_b;
+  if (!detail::isotropic_blocks(*a.w, wp_a, wr_a) || !detail::isotropic_blocks(*b.w, wp_b, wr_b)) {
+    return false;
+  }
+  const Setup g = setup(target);
+  // both tilts, then both wrists: each is a chain of dependent steps, and side by side the
+  // processor overlaps the two
+  Eigen::Matrix3d Ra, Rb;
+  Eigen::Vector3d turn_a, turn_b;
+  tilt(g, target, wp_a, wr_a, *a.start, Ra, turn_a);
+  tilt(g, target, wp_b, wr_b, *b.start, Rb, turn_b);
+  finish(g, target, Ra, turn_a, *a.start, *a.theta, *a.T, *a.J, *a.e);
+  finish(g, target, Rb, turn_b, *b.start, *b.theta, *b.T, *b.J, *b.e);
+  return true;
 }
 
 bool Probe::constraint_wrench(const double* x, const Pose& T, const Jacobian& J,

@@ -160,11 +160,11 @@ class PlanarArm final : public ChainMechanism {
                   const PlacementIO& b) const noexcept override;
 
  private:
-  struct Setup;
+  struct Setup;  // what both placements of one target share
   Setup setup(const Pose& target) const noexcept;
-  void solve(const Setup& g, const Pose& target, double w_p, double w_r,
-             const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
-             Vector6& e) const noexcept;
+  double angle(const Setup& g, double w_p, double w_r, double& c, double& s) const noexcept;
+  void finish(const Pose& target, double x, double c, double s, const JointVector& start,
+              JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept;
   Eigen::Vector3d pivot_, normal_, zero_direction_;
   double length_;
   Eigen::Matrix3d rest_;  // the handle's orientation at theta = 0
@@ -201,11 +201,13 @@ class Probe final : public ChainMechanism {
                          std::uint32_t locked, Vector6& n) const noexcept override;
 
  private:
-  struct Setup;
+  struct Setup;  // what both placements of one target share
   Setup setup(const Pose& target) const noexcept;
-  void solve(const Setup& g, const Pose& target, double w_p, double w_r,
-             const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
-             Vector6& e) const noexcept;
+  void tilt(const Setup& g, const Pose& target, double w_p, double w_r,
+            const JointVector& start, Eigen::Matrix3d& R, Eigen::Vector3d& turn) const noexcept;
+  void finish(const Setup& g, const Pose& target, const Eigen::Matrix3d& R,
+              const Eigen::Vector3d& turn, const JointVector& start, JointVector& theta,
+              Pose& T, Jacobian& J, Vector6& e) const noexcept;
   Eigen::Vector3d point_, normal_, tangent_;
   double length_;
   bool unilateral_;
