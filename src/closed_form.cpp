@@ -195,7 +195,8 @@ Angle solve_tilt(const TiltCost& k, double w_p, double w_r, const Angle& phi0,
   // lies where the tip would be inside, where g is the bilateral one's.
   // Start at the minimiser of the two terms' quadratic models about their minimisers (g's
   // curvature at its minimiser, from the side where it acts): with the weights far apart, as
-  // on an under-actuated device, it is within rounding of the root
+  // on an under-actuated device, it is so close to the root that the first step's error term
+  // (bracketed_newton) ends the solve
   const Angle at0 = absolute(phi0, base);
   const double c0 = at0.c, s0 = at0.s;
   double g2_0;  // g'' at phi0, from the side where the cost acts

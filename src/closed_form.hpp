@@ -22,6 +22,11 @@ namespace virtmech::detail {
 /// Position and rotation weights when W is isotropic within each block (w[0] = w[1] =
 /// w[2], w[3] = w[4] = w[5]); false otherwise.
 bool isotropic_blocks(const Vector6& w, double& w_p, double& w_r) noexcept;
+/// isotropic_blocks for both weightings of a pair (Mechanism::place_pair): false unless both.
+inline bool isotropic_blocks(const Vector6& w_a, const Vector6& w_b, double& wp_a, double& wr_a,
+                             double& wp_b, double& wr_b) noexcept {
+  return isotropic_blocks(w_a, wp_a, wr_a) && isotropic_blocks(w_b, wp_b, wr_b);
+}
 
 /// The position cost of a stylus as a function of c = cos(phi), phi the angle between its
 /// tip-to-handle direction and a reference axis: p2 c^2 + p1 c (+ a constant). `one_sided`:

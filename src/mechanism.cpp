@@ -232,9 +232,7 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
 bool PlanarArm::place_pair(const Pose& target, const PlacementIO& a,
                            const PlacementIO& b) const noexcept {
   double wp_a, wr_a, wp_b, wr_b;
-  if (!detail::isotropic_blocks(*a.w, wp_a, wr_a) || !detail::isotropic_blocks(*b.w, wp_b, wr_b)) {
-    return false;
-  }
+  if (!detail::isotropic_blocks(*a.w, *b.w, wp_a, wr_a, wp_b, wr_b)) return false;
   const Setup g = setup(target);
   // (one after the other: side by side, as Probe::place_pair does, measured slower here)
   double c, s;
@@ -404,9 +402,7 @@ bool Probe::place(const Pose& target, const Vector6& w, const JointVector& start
 bool Probe::place_pair(const Pose& target, const PlacementIO& a,
                        const PlacementIO& b) const noexcept {
   double wp_a, wr_a, wp_b, wr_b;
-  if (!detail::isotropic_blocks(*a.w, wp_a, wr_a) || !detail::isotropic_blocks(*b.w, wp_b, wr_b)) {
-    return false;
-  }
+  if (!detail::isotropic_blocks(*a.w, *b.w, wp_a, wr_a, wp_b, wr_b)) return false;
   const Setup g = setup(target);
   // both tilts, then both wrists: each is a chain of dependent steps, and side by side the
   // processor overlaps the two

@@ -5,6 +5,7 @@
 // use, and on the sphere through its exponential map for the others).
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -265,6 +266,15 @@ namespace {
 
 const Vector3d kHookNormal = Vector3d(0.2, 1.0, -0.3).normalized(), kHookPoint(0.01, -0.02, 0.03);
 
+// The cycle's two weightings for a length scale L (one block dominant, the other at the
+// secondary weight 1e-6), and both blocks alike (where Newton takes several steps)
+std::array<virtmech::Vector6, 3> cycle_weights(double L) {
+  const double sw = 1e-6, L2 = L * L;
+  return {(virtmech::Vector6() << 1, 1, 1, sw * L2, sw * L2, sw * L2).finished(),
+          (virtmech::Vector6() << sw, sw, sw, L2, L2, L2).finished(),
+          (virtmech::Vector6() << 1, 1, 1, L2, L2, L2).finished()};
+}
+
 // every mechanism with a place() hook, about kHookPoint
 std::vector<std::pair<const char*, std::shared_ptr<virtmech::Mechanism>>> hook_mechanisms() {
   using namespace virtmech;
@@ -294,11 +304,7 @@ TEST(PlaceHooks, ReturnTheChainsPoseJacobianAndError) {
   std::mt19937 rng(23);
   std::normal_distribution<double> g(0.0, 1.0);
   for (const auto& [name, mech] : mechanisms) {
-    const double L = 0.1;
-    const std::vector<Vector6> weights = {
-        (Vector6() << 1, 1, 1, 1e-6 * L * L, 1e-6 * L * L, 1e-6 * L * L).finished(),
-        (Vector6() << 1e-6, 1e-6, 1e-6, L * L, L * L, L * L).finished(),
-        (Vector6() << 1, 1, 1, L * L, L * L, L * L).finished()};
+    const auto weights = cycle_weights(0.1);
     int placed = 0;
     for (int k = 0; k < 200; ++k) {
       Pose target = Pose::Identity();
@@ -388,8 +394,7 @@ TEST(PlaceHooks, PlacePairIsPlaceForEachWeighting) {
   std::normal_distribution<double> g(0.0, 1.0);
   std::uniform_real_distribution<double> u(-2.0, 2.0);
   const double L = 0.1;
-  const Vector6 w_e = (Vector6() << 1, 1, 1, 1e-6 * L * L, 1e-6 * L * L, 1e-6 * L * L).finished();
-  const Vector6 w_star = (Vector6() << 1e-6, 1e-6, 1e-6, L * L, L * L, L * L).finished();
+  const Vector6 w_e = cycle_weights(L)[0], w_star = cycle_weights(L)[1];
   const Vector6 mixed = (Vector6() << 1, 2, 1, L * L, L * L, L * L).finished();  // no closed form
   int paired = 0;
   for (const auto& [name, mech] : hook_mechanisms()) {
@@ -450,12 +455,7 @@ TEST(PlaceHooks, ProbesTiltIsTheMinimiserToRounding) {
   std::mt19937 rng(31);
   std::normal_distribution<double> g(0.0, 1.0);
   std::uniform_real_distribution<double> u(-0.9, 0.9);
-  const double sw = 1e-6;  // the cycle's weights: one block dominant, the other secondary;
-  // and both alike, where Newton takes several steps from its start
-  const Vector6 weights[3] = {
-      (Vector6() << 1, 1, 1, sw * L * L, sw * L * L, sw * L * L).finished(),
-      (Vector6() << sw, sw, sw, L * L, L * L, L * L).finished(),
-      (Vector6() << 1, 1, 1, L * L, L * L, L * L).finished()};
+  const auto weights = cycle_weights(L);
   double worst = 0.0;
   for (int k = 0; k < 600; ++k) {
     Pose target = Pose::Identity();
@@ -470,7 +470,7 @@ TEST(PlaceHooks, ProbesTiltIsTheMinimiserToRounding) {
     ASSERT_TRUE(probe.place(target, w, probe.home(), theta, T, J, e));
     // the 1-D problem in long double
     using LD = long double;
-    const LD d = n.dot(target.translation() - p0), wp = w[0], wr = w[3] / (L * L) * (L * L);
+    const LD d = n.dot(target.translation() - p0), wp = w[0], wr = w[3];
     const Vector3d u_r = -target.linear().col(2);
     const LD phi_r = std::atan2(static_cast<LD>(u_r.cross(n).norm()), static_cast<LD>(u_r.dot(n)));
     const LD phi0 = std::acos(std::min<LD>(1, std::max<LD>(-1, d / L)));
@@ -513,11 +513,7 @@ TEST(PlaceHooks, PlanarArmsAngleIsTheMinimiserToRounding) {
   N << 0, -nn.z(), nn.y(), nn.z(), 0, -nn.x(), -nn.y(), nn.x(), 0;
   std::mt19937 rng(37);
   std::normal_distribution<double> g(0.0, 1.0);
-  const double sw = 1e-6;
-  const Vector6 weights[3] = {
-      (Vector6() << 1, 1, 1, sw * L * L, sw * L * L, sw * L * L).finished(),
-      (Vector6() << sw, sw, sw, L * L, L * L, L * L).finished(),
-      (Vector6() << 1, 1, 1, L * L, L * L, L * L).finished()};
+  const auto weights = cycle_weights(L);
   int checked = 0;
   for (int k = 0; k < 600; ++k) {
     Pose target = Pose::Identity();

@@ -468,7 +468,7 @@ namespace {
 class OneAtATime final : public Mechanism {
  public:
   explicit OneAtATime(std::shared_ptr<const Mechanism> inner)
-      : Mechanism("OneAtATime", kinds(*inner), inner->lower(), inner->upper(), inner->home(),
+      : Mechanism("OneAtATime", joint_kinds(*inner), inner->lower(), inner->upper(), inner->home(),
                   inner->length_scale()),
         inner_(std::move(inner)) {}
   void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept override {
@@ -484,11 +484,6 @@ class OneAtATime final : public Mechanism {
   }
 
  private:
-  static std::vector<JointType> kinds(const Mechanism& m) {
-    std::vector<JointType> k;
-    for (int i = 0; i < m.dof(); ++i) k.push_back(m.joint_type(i));
-    return k;
-  }
   std::shared_ptr<const Mechanism> inner_;
 };
 

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "../../src/flush_denormals.hpp"
+#include "test_support.hpp"
 #include "virtmech/virtmech.hpp"
 
 namespace {
@@ -28,7 +29,7 @@ bool g_divide = false;
 class ModeProbe final : public Mechanism {
  public:
   explicit ModeProbe(std::shared_ptr<const Probe> probe)
-      : Mechanism("ModeProbe", kinds_of(*probe), probe->lower(), probe->upper(), probe->home(),
+      : Mechanism("ModeProbe", vmtest::joint_kinds(*probe), probe->lower(), probe->upper(), probe->home(),
                   probe->length_scale()),
         probe_(std::move(probe)) {}
 
@@ -44,12 +45,6 @@ class ModeProbe final : public Mechanism {
   }
 
  private:
-  static std::vector<JointType> kinds_of(const Mechanism& m) {
-    std::vector<JointType> kinds;
-    for (int i = 0; i < m.dof(); ++i) kinds.push_back(m.joint_type(i));
-    return kinds;
-  }
-
   std::shared_ptr<const Probe> probe_;
 };
 

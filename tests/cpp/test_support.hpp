@@ -2,6 +2,7 @@
 #pragma once
 
 #include <random>
+#include <vector>
 
 #include "virtmech/virtmech.hpp"
 
@@ -19,6 +20,13 @@ inline JointVector random_within(std::mt19937& rng, const JointVector& lo, const
     q[i] = std::uniform_real_distribution<double>(a, b)(rng);
   }
   return q;
+}
+
+/// The joint kinds of a mechanism, for a test's wrapper of it (Mechanism's constructor).
+inline std::vector<JointType> joint_kinds(const Mechanism& m) {
+  std::vector<JointType> kinds;
+  for (int i = 0; i < m.dof(); ++i) kinds.push_back(m.joint_type(i));
+  return kinds;
 }
 
 /// Central-difference Jacobian of a forward-kinematics function: [v; w] in world axes.
