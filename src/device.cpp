@@ -268,6 +268,82 @@ PhantomOmni::PhantomOmni(const PhantomOmniParams& params)
   set_home(home);
 }
 
+void PhantomOmni::forward(const double* q, Pose& T) const noexcept { kinematics(q, T, nullptr); }
+
+void PhantomOmni::forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept {
+  kinematics(q, T, &J);
+}
+
+// omni_chain() and omni_coupling() in closed form. With c_i, s_i the cosine and sine of the
+// waist q1, shoulder q2 and absolute elbow q3 (the serial elbow is q3 - q2, so the forearm
+// turns by q3 about -x):
+//   R1 = Ry(-q1),  R3 = R1 Rx(-q3),  gimbal centre p = o1 + R1 (u + w),
+//   o1 = (0, l2, -l1),  u = Rx(-q2) (0, 0, l1) = l1 (0, s2, c2),
+//   w = Rx(-q3) (0, -l2, 0) = l2 (0, -c3, s3).
+// The Jacobian's columns in q: the waist [a1 x (p - o1); a1] with a1 = -y; the shoulder
+// (its serial column minus the elbow's: the parallelogram) [a2 x u'; 0] with a2 = -R1 x,
+// u' = R1 u; the elbow [a2 x w'; a2], w' = R1 w; the gimbal's [0; sign_i a_i] (their axes
+// meet at p).
+void PhantomOmni::kinematics(const double* q, Pose& T, Jacobian* J) const noexcept {
+  const PhantomOmniParams& P = params_;
+  const double s1 = std::sin(q[0]), c1 = std::cos(q[0]);
+  const double s2 = std::sin(q[1]), c2 = std::cos(q[1]);
+  const double s3 = std::sin(q[2]), c3 = std::cos(q[2]);
+  // u' = R1 u and w' = R1 w (R1 (0, y, z) = (-s1 z, y, c1 z))
+  const double uy = P.l1 * s2, uz = P.l1 * c2, wy = -P.l2 * c3, wz = P.l2 * s3;
+  const Eigen::Vector3d u(-s1 * uz, uy, c1 * uz), w(-s1 * wz, wy, c1 * wz);
+  const Eigen::Vector3d p(u.x() + w.x(), P.l2 + u.y() + w.y(), -P.l1 + u.z() + w.z());
+  Eigen::Matrix3d R;  // R3
+  R << c1, s1 * s3, -s1 * c3,  //
+      0.0, c3, s3,             //
+      s1, -c1 * s3, c1 * c3;
+  const Eigen::Vector3d a4 = -R.col(1);
+  // the gimbal: about -y, -x, -z by the serial angles t_i = sign_i (q_i - offset_i)
+  double sg[3], cg[3];
+  for (size_t i = 0; i < 3; ++i) {
+    const double t = P.gimbal_sign[i] * (q[3 + i] - P.gimbal_offset[i]);
+    sg[i] = std::sin(t);
+    cg[i] = std::cos(t);
+  }
+  {  // R <- R Ry(-t4)
+    const Eigen::Vector3d x = R.col(0), z = R.col(2);
+    R.col(0) = cg[0] * x + sg[0] * z;
+    R.col(2) = cg[0] * z - sg[0] * x;
+  }
+  const Eigen::Vector3d a5 = -R.col(0);
+  {  // R <- R Rx(-t5)
+    const Eigen::Vector3d y = R.col(1), z = R.col(2);
+    R.col(1) = cg[1] * y - sg[1] * z;
+    R.col(2) = cg[1] * z + sg[1] * y;
+  }
+  const Eigen::Vector3d a6 = -R.col(2);
+  {  // R <- R Rz(-t6)
+    const Eigen::Vector3d x = R.col(0), y = R.col(1);
+    R.col(0) = cg[2] * x - sg[2] * y;
+    R.col(1) = cg[2] * y + sg[2] * x;
+  }
+  // the handle: Rx(pi), the stylus forward
+  T.linear().col(0) = R.col(0);
+  T.linear().col(1) = -R.col(1);
+  T.linear().col(2) = -R.col(2);
+  T.translation() = p;
+  T.makeAffine();
+  if (!J) return;
+  Jacobian& Jq = *J;
+  Jq.resize(6, 6);
+  const Eigen::Vector3d a2(-c1, 0.0, -s1);
+  const Eigen::Vector3d r1 = u + w;  // p - o1
+  Jq.col(0) << -r1.z(), 0.0, r1.x(), 0.0, -1.0, 0.0;  // (-y) x r1
+  Jq.col(1).head<3>() = a2.cross(u);
+  Jq.col(1).tail<3>().setZero();
+  Jq.col(2).head<3>() = a2.cross(w);
+  Jq.col(2).tail<3>() = a2;
+  Jq.block<3, 3>(0, 3).setZero();
+  Jq.col(3).tail<3>() = P.gimbal_sign[0] * a4;
+  Jq.col(4).tail<3>() = P.gimbal_sign[1] * a5;
+  Jq.col(5).tail<3>() = P.gimbal_sign[2] * a6;
+}
+
 namespace {
 
 KinematicChain planar3r_chain(double l1, double l2, const Pose& base) {

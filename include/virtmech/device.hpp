@@ -133,7 +133,14 @@ class PhantomOmni final : public SerialDevice {
   explicit PhantomOmni(const PhantomOmniParams& params = PhantomOmniParams());
   const PhantomOmniParams& params() const noexcept { return params_; }
 
+  /// The chain's pose and Jacobian written out for this geometry (the servo cycle's first
+  /// stage): the same values as the chain walk through the coupling, to rounding.
+  void forward(const double* q, Pose& T) const noexcept override;
+  void forward_jacobian(const double* q, Pose& T, Jacobian& J) const noexcept override;
+
  private:
+  void kinematics(const double* q, Pose& T, Jacobian* J) const noexcept;
+
   PhantomOmniParams params_;
 };
 

@@ -143,3 +143,31 @@ TEST(Kinematics, InvalidConstructionNamesTheParameter) {
   EXPECT_NE(message([] { PlanarArm({0, 0, 0}, {0, 0, 1}, 1.0, {0, 0, 1}); }).find("zero_direction"),
             std::string::npos);
 }
+
+TEST(Kinematics, OmniClosedFormIsItsChainWalked) {
+  // the Omni's written-out pose and Jacobian against its own chain and joint map walked by
+  // the generic SerialDevice, over its range and beyond, with a driver's gimbal convention
+  PhantomOmniParams custom;
+  custom.gimbal_offset = {0.3, -0.2, 1.0};
+  custom.gimbal_sign = {-1.0, 1.0, -1.0};
+  custom.l1 = 0.21;
+  std::mt19937 rng(23);
+  for (const PhantomOmniParams& p : {PhantomOmniParams(), custom}) {
+    const PhantomOmni omni(p);
+    DeviceLimits L;
+    L.actuated = {true, true, true, false, false, false};
+    L.torque_limit = {1.0, 1.0, 1.0, 0.0, 0.0, 0.0};
+    const SerialDevice walked("walked", omni.chain(), L, omni.coupling(), omni.coupling_offset());
+    for (int trial = 0; trial < 300; ++trial) {
+      const JointVector q = random_within(rng, omni.lower(), omni.upper(), 2.0);
+      Pose T, Tw, Tp;
+      Jacobian J, Jw;
+      omni.forward_jacobian(q.data(), T, J);
+      walked.forward_jacobian(q.data(), Tw, Jw);
+      omni.forward(q.data(), Tp);
+      EXPECT_LT((T.matrix() - Tw.matrix()).cwiseAbs().maxCoeff(), 1e-15) << trial;
+      EXPECT_LT((J - Jw).cwiseAbs().maxCoeff(), 1e-15) << trial;
+      EXPECT_EQ(T.matrix(), Tp.matrix()) << trial;
+    }
+  }
+}
