@@ -1,11 +1,11 @@
 #include "virtmech/controller.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 
+#include "cycle_clock.hpp"
 #include "flush_denormals.hpp"
 #include "small_products.hpp"
 #include "track_detail.hpp"
@@ -623,6 +623,7 @@ Controller::Controller(std::shared_ptr<const Device> device,
   if (!device_) throw std::invalid_argument("device: expected a device, got null");
   if (!mechanism_) throw std::invalid_argument("mechanism: expected a mechanism, got null");
   model_ = make_controller_model(*device_, *mechanism_, settings);
+  detail::CycleClock::calibrate();  // (once per process, not in a cycle)
   reset();
   data_.last.torque = JointVector::Zero(device_->dof());
   data_.last.theta = data_.nearest.theta;
@@ -718,7 +719,7 @@ std::uint32_t Controller::place_cycle(const double* q, const double* dq,
                                       const DeviceKinematics* at_q, CycleOutput& out,
                                       double t_s) noexcept {
   ControllerData& d = data_;
-  d.cycle_start = std::chrono::steady_clock::now();
+  d.cycle_start = detail::CycleClock::now();
   const Device& dev = *device_;
   const Mechanism& mech = *mechanism_;
   const ControllerModel& M = model_;
@@ -809,9 +810,8 @@ std::uint32_t Controller::unrendered(CycleOutput& out) noexcept {
 }
 
 std::uint32_t Controller::finish(CycleOutput& out) noexcept {
-  const auto t_end = std::chrono::steady_clock::now();
   out.computation_time_us =
-      std::chrono::duration<double, std::micro>(t_end - data_.cycle_start).count();
+      detail::CycleClock::microseconds(data_.cycle_start, detail::CycleClock::now());
   data_.last = out;
   return out.status;
 }

@@ -9,7 +9,6 @@
 //   -> passivity (energy tank) -> keep_renderable -> safety -> outputs
 #pragma once
 
-#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -207,7 +206,7 @@ struct ControllerData {
   CycleOutput last;
   // the cycle between place() and render(): its joint values and its start
   JointVector q_cycle;
-  std::chrono::steady_clock::time_point cycle_start;
+  std::uint64_t cycle_start = 0;  // (the cycle clock's ticks)
 };
 
 /// The device's pose and Jacobian at one q (Device::forward_jacobian's outputs), computed
