@@ -1,4 +1,5 @@
 #include "closed_form.hpp"
+#include "arctangent.hpp"
 #include "newton_stop.hpp"
 
 #include <algorithm>
@@ -81,7 +82,7 @@ Angle position_minimiser(const TiltCost& k, const Angle& base) noexcept {
   auto from_cosine_sine = [&](double c, double s) {
     // phi - phi_r in [-pi, pi] (both in [0, pi]): its cosine and sine by the angle difference
     const double cy = c * base.c + s * base.s, sy = s * base.c - c * base.s;
-    return Angle{std::atan2(sy, cy), cy, sy};
+    return Angle{detail::atan2(sy, cy), cy, sy};
   };
   auto from_cosine = [&](double c) {
     c = std::min(1.0, std::max(-1.0, c));
@@ -171,7 +172,7 @@ Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
 // for ang = acos(y) with s1 = sin(ang) >= 0 given: h = ang / s1 and dh/dy, so that
 // d acos(y)^2 / dy = -2 h (-> -2 as ang -> 0) and d^2 acos(y)^2 / dy^2 = -2 dh/dy
 void acos_squared_terms(double y, double s1, double& ang, double& h, double& dh) noexcept {
-  ang = std::atan2(s1, y);
+  ang = detail::atan2(s1, y);
   h = ang > 1e-8 ? ang / s1 : 1.0 + ang * ang / 6.0;
   dh = ang > 1e-4 ? (ang * y - s1) / (s1 * s1 * s1) : -1.0 / 3.0;
 }
@@ -311,7 +312,7 @@ Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u
   } else {
     k /= s;
   }
-  turn = std::atan2(s, c) * k;
+  turn = detail::atan2(s, c) * k;
   const double n = std::hypot(s, c);  // the angle's cosine and sine: (c, s) / n
   return rotated(R_R, k, c / n, s / n);
 }
@@ -336,7 +337,7 @@ struct StylusCost {
   double value(const Eigen::Vector3d& u) const noexcept {
     bool lifted;
     const double s = u.cross(u_R).norm(), c = u.dot(u_R);
-    const double ang = s == 0.0 && c > 0.0 ? 0.0 : std::atan2(s, c);  // (atan2's own 0)
+    const double ang = s == 0.0 && c > 0.0 ? 0.0 : detail::atan2(s, c);  // (atan2's own 0)
     return w_p * set.residual(p_R - L * u, lifted).squaredNorm() + w_r * ang * ang;
   }
 
@@ -515,7 +516,7 @@ LineCaps beyond_reach_cap(const StylusCost& f, const Eigen::Vector3d& w, LineCap
   double rotation = 0.0;  // its least eigenvalue is >= 0 where the cap is within pi / 2 of u_R:
   // cos angle(centre, u_R) >= sin(radius) = rho sqrt(1 - rho^2 / 4)
   if (!(caps.centre[0].dot(f.u_R) >= caps.rho * std::sqrt(1.0 - 0.25 * caps.rho * caps.rho))) {
-    const double theta = std::atan2(caps.centre[0].cross(f.u_R).norm(),
+    const double theta = detail::atan2(caps.centre[0].cross(f.u_R).norm(),
                                     caps.centre[0].dot(f.u_R)) +
                          2.0 * std::asin(0.5 * caps.rho);
     if (!(theta < M_PI - 1e-3)) return caps;
@@ -766,7 +767,7 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
     D2 d2;
     shape(y, 0, P, d1, d2);
     const Eigen::Vector3d r = P + L * u_ - p_R;
-    const double ang = std::atan2(u_.cross(u_R).norm(), u_.dot(u_R));
+    const double ang = detail::atan2(u_.cross(u_R).norm(), u_.dot(u_R));
     return w_p * r.squaredNorm() + w_r * ang * ang;
   };
   for (int it = 0; it < 12; ++it) {
@@ -958,7 +959,7 @@ namespace {
 
 // the direction of q, atan2(q.y, q.x), with its cosine and sine
 double direction(const Eigen::Vector2d& q, double& cos_x, double& sin_x) noexcept {
-  const double x = std::atan2(q.y(), q.x());
+  const double x = detail::atan2(q.y(), q.x());
   const double n = q.norm();
   if (n > 0.0 && std::isfinite(n)) {
     cos_x = q.x() / n;
@@ -977,7 +978,7 @@ ArcSetup arc_setup(const Eigen::Vector2d& p, const Eigen::Vector2d& o) noexcept 
   a.o = o;
   a.theta_p = direction(p, a.cp, a.sp);
   const double cross = p.x() * o.y() - p.y() * o.x(), dot = p.dot(o);
-  a.span = std::atan2(cross, dot);  // theta_o - theta_p in [-pi, pi]
+  a.span = detail::atan2(cross, dot);  // theta_o - theta_p in [-pi, pi]
   a.dir = a.span > 0.0 ? 1.0 : -1.0;
   a.width = std::abs(a.span);
   const double n = std::hypot(cross, dot);
@@ -1048,13 +1049,13 @@ Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3
   // and c exactly, also close to the lock
   const double cb = std::sqrt(M(1, 2) * M(1, 2) + M(2, 2) * M(2, 2));  // |cos b|
   const bool lock = !(cb > 1e-12);
-  const double a = lock ? start[0] : std::atan2(-M(1, 2), M(2, 2));
+  const double a = lock ? start[0] : detail::atan2(-M(1, 2), M(2, 2));
   const double ca = lock ? std::cos(a) : M(2, 2) / cb, sa = lock ? std::sin(a) : -M(1, 2) / cb;
   // rows 0 and 1 of N = Rx(-a) M, and N(2, 2) (= |cos b| off the lock)
   const double n02 = M(0, 2), n10 = ca * M(1, 0) + sa * M(2, 0), n11 = ca * M(1, 1) + sa * M(2, 1);
   const double n22 = lock ? -sa * M(1, 2) + ca * M(2, 2) : cb;
   Eigen::Vector3d e1, e2;
-  e1 << a, std::atan2(n02, n22), std::atan2(n10, n11);
+  e1 << a, detail::atan2(n02, n22), detail::atan2(n10, n11);
   e2 << e1[0] + M_PI, M_PI - e1[1], e1[2] + M_PI;  // the other branch (cos b < 0)
   auto wrap_near = [](double x, double ref) {
     return x + 2.0 * M_PI * round_half_away((ref - x) / (2.0 * M_PI));

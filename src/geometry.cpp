@@ -9,6 +9,7 @@
 #include <string>
 #include <utility>
 
+#include "arctangent.hpp"
 #include "newton_stop.hpp"
 #include "virtmech/validate.hpp"
 
@@ -1137,7 +1138,7 @@ Eigen::Vector2d Sphere::closest_point(const Eigen::Vector3d& p,
     return {0.0, 0.0};
   }
   point = c_ + (r_ / n) * (p - c_);
-  return {std::atan2(q[1], q[0]), std::atan2(q[2], std::hypot(q[0], q[1]))};
+  return {detail::atan2(q[1], q[0]), detail::atan2(q[2], std::hypot(q[0], q[1]))};
 }
 
 Cylinder::Cylinder(const Eigen::Vector3d& point, const Eigen::Vector3d& direction, double radius)
@@ -1174,7 +1175,7 @@ Eigen::Vector2d Cylinder::closest_point(const Eigen::Vector3d& p,
   const Eigen::Vector3d q = p - a_;
   const double v = q.dot(d_);
   const double x = q.dot(e1_), y = q.dot(e2_);
-  const double u = (x == 0.0 && y == 0.0) ? 0.0 : std::atan2(y, x);
+  const double u = (x == 0.0 && y == 0.0) ? 0.0 : detail::atan2(y, x);
   point = evaluate(u, v);
   return {u, v};
 }

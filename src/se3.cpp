@@ -1,5 +1,7 @@
 #include "virtmech/se3.hpp"
 
+#include "arctangent.hpp"
+
 #include <cmath>
 
 namespace virtmech {
@@ -16,7 +18,7 @@ Eigen::Vector3d so3_log(const Eigen::Matrix3d& R) noexcept {
   const double n = q.vec().norm();
   if (n < 1e-300) return Eigen::Vector3d::Zero();
   const double w = q.w();
-  const double angle = 2.0 * std::atan2(n, std::abs(w));
+  const double angle = 2.0 * detail::atan2(n, std::abs(w));
   const double sign = (w < 0.0) ? -1.0 : 1.0;
   return (sign * angle / n) * q.vec();
 }
