@@ -1,6 +1,6 @@
 #include "closed_form.hpp"
-#include "arctangent.hpp"
 #include "newton_stop.hpp"
+#include "trig.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -105,12 +105,19 @@ Angle position_minimiser(const TiltCost& k, const Angle& base) noexcept {
   return here;
 }
 
+// The angle x with its cosine and sine.
+[[gnu::noinline]] Angle at_angle(double x) noexcept {
+  Angle a{x, 1.0, 0.0};
+  detail::sincos(x, a.s, a.c);
+  return a;
+}
+
 // The angle a.x + d with its cosine and sine from a's: for |d| < 1e-3 by the angle sum with
 // the Taylor polynomials of cos d and sin d (their next terms, d^6 / 720 and d^7 / 5040,
 // are below 1e-20: exact to rounding), which saves a sincos; else directly.
 Angle advanced(const Angle& a, double d) noexcept {
   const double x = a.x + d;
-  if (!(std::abs(d) < 1e-3)) return {x, std::cos(x), std::sin(x)};
+  if (!(std::abs(d) < 1e-3)) return at_angle(x);
   const double h = x - a.x;  // the step x really took
   const double h2 = h * h;
   const double ch = 1.0 - h2 * (0.5 - h2 * (1.0 / 24.0));
@@ -163,7 +170,7 @@ Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
     // Newton would leave the bracket (or f'' <= 0, or NaN): bisect
     last_step = 0.0;
     const double mid = 0.5 * (lo + hi);
-    at = {mid, std::cos(mid), std::sin(mid)};
+    at = at_angle(mid);
     if (hi - lo <= 4e-16 * (1.0 + std::abs(hi))) return at;
   }
   return at;
@@ -881,8 +888,12 @@ bool stylus_newton(const Shape& shape, const Eigen::Matrix<double, N, 1>& lo,
       // cos n and sin(n) / n; below 1e-3 by their Taylor polynomials (next terms n^6 / 720
       // and n^6 / 5040 relative, below 1e-20), as on the sphere
       const double n2 = n * n;
-      const double cn = n < 1e-3 ? 1.0 - n2 * (0.5 - n2 * (1.0 / 24.0)) : std::cos(n);
-      const double sn_n = n < 1e-3 ? 1.0 - n2 * (1.0 / 6.0 - n2 * (1.0 / 120.0)) : std::sin(n) / n;
+      double cn = 1.0 - n2 * (0.5 - n2 * (1.0 / 24.0));
+      double sn_n = 1.0 - n2 * (1.0 / 6.0 - n2 * (1.0 / 120.0));
+      if (!(n < 1e-3)) {
+        detail::sincos(n, sn_n, cn);
+        sn_n /= n;
+      }
       u_t = n > 0.0
                 ? Eigen::Vector3d((cn * u + sn_n * t * (E * step.template tail<2>())).normalized())
                 : u;
@@ -965,8 +976,7 @@ double direction(const Eigen::Vector2d& q, double& cos_x, double& sin_x) noexcep
     cos_x = q.x() / n;
     sin_x = q.y() / n;
   } else {  // (+-0, +-0): atan2's signed zeros decide
-    cos_x = std::cos(x);
-    sin_x = std::sin(x);
+    detail::sincos(x, sin_x, cos_x);
   }
   return x;
 }
@@ -1050,7 +1060,8 @@ Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3
   const double cb = std::sqrt(M(1, 2) * M(1, 2) + M(2, 2) * M(2, 2));  // |cos b|
   const bool lock = !(cb > 1e-12);
   const double a = lock ? start[0] : detail::atan2(-M(1, 2), M(2, 2));
-  const double ca = lock ? std::cos(a) : M(2, 2) / cb, sa = lock ? std::sin(a) : -M(1, 2) / cb;
+  double ca = M(2, 2) / cb, sa = -M(1, 2) / cb;
+  if (lock) detail::sincos(a, sa, ca);
   // rows 0 and 1 of N = Rx(-a) M, and N(2, 2) (= |cos b| off the lock)
   const double n02 = M(0, 2), n10 = ca * M(1, 0) + sa * M(2, 0), n11 = ca * M(1, 1) + sa * M(2, 1);
   const double n22 = lock ? -sa * M(1, 2) + ca * M(2, 2) : cb;

@@ -9,8 +9,8 @@
 #include <string>
 #include <utility>
 
-#include "arctangent.hpp"
 #include "newton_stop.hpp"
+#include "trig.hpp"
 #include "virtmech/validate.hpp"
 
 namespace virtmech {
@@ -1108,8 +1108,10 @@ Eigen::Vector2d Sphere::upper() const noexcept { return {kPi, 0.5 * kPi}; }
 
 Eigen::Vector3d Sphere::evaluate(double u, double v) const noexcept {
   v = clamp(v, -0.5 * kPi, 0.5 * kPi);
-  return c_ + r_ * (A_ * Eigen::Vector3d(std::cos(u) * std::cos(v), std::sin(u) * std::cos(v),
-                                         std::sin(v)));
+  double su, cu, sv, cv;
+  detail::sincos(u, su, cu);
+  detail::sincos(v, sv, cv);
+  return c_ + r_ * (A_ * Eigen::Vector3d(cu * cv, su * cv, sv));
 }
 
 void Sphere::derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept {
@@ -1154,7 +1156,9 @@ Eigen::Vector2d Cylinder::lower() const noexcept { return {-kPi, -kInf}; }
 Eigen::Vector2d Cylinder::upper() const noexcept { return {kPi, kInf}; }
 
 Eigen::Vector3d Cylinder::evaluate(double u, double v) const noexcept {
-  return a_ + r_ * (std::cos(u) * e1_ + std::sin(u) * e2_) + v * d_;
+  double s, c;
+  detail::sincos(u, s, c);
+  return a_ + r_ * (c * e1_ + s * e2_) + v * d_;
 }
 
 void Cylinder::derivatives(double u, double v, int order, SurfaceDerivatives& d) const noexcept {
@@ -1167,7 +1171,9 @@ void Cylinder::derivatives(double u, double v, int order, SurfaceDerivatives& d)
 }
 
 Eigen::Vector3d Cylinder::normal(double u, double) const noexcept {
-  return std::cos(u) * e1_ + std::sin(u) * e2_;
+  double s, c;
+  detail::sincos(u, s, c);
+  return c * e1_ + s * e2_;
 }
 
 Eigen::Vector2d Cylinder::closest_point(const Eigen::Vector3d& p,

@@ -4,6 +4,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "trig.hpp"
 #include "virtmech/validate.hpp"
 
 namespace virtmech {
@@ -57,7 +58,8 @@ inline void apply_origin(Frame& f, const Pose& origin, bool identity,
     return;
   }
   // rotation about a coordinate axis k mixes the two other columns of R
-  const double c = std::cos(a), s = std::sin(a);
+  double c, s;
+  detail::sincos(a, s, c);
   const int u = axis_index == 2 ? 0 : axis_index + 1, v = axis_index == 0 ? 2 : axis_index - 1;
   const Eigen::Vector3d ru = f.R.col(u), rv = f.R.col(v);
   f.R.col(u) = c * ru + s * rv;

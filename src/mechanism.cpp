@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "closed_form.hpp"
+#include "trig.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/validate.hpp"
 
@@ -297,8 +298,9 @@ void wrist_at_tip(const Eigen::Matrix3d& B, const Eigen::Vector3d& tip, double l
 }
 
 Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noexcept {
-  const double sa = std::sin(abc[0]), ca = std::cos(abc[0]);
-  const double sb = std::sin(abc[1]), cb = std::cos(abc[1]);
+  double sa, ca, sb, cb;
+  detail::sincos(abc[0], sa, ca);
+  detail::sincos(abc[1], sb, cb);
   return B * Eigen::Vector3d(sb, -sa * cb, ca * cb);
 }
 

@@ -1,6 +1,6 @@
 #include "virtmech/se3.hpp"
 
-#include "arctangent.hpp"
+#include "trig.hpp"
 
 #include <cmath>
 
