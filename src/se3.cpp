@@ -13,7 +13,17 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& w) noexcept {
 }
 
 Eigen::Vector3d so3_log(const Eigen::Matrix3d& R) noexcept {
-  // the quaternion route is well conditioned at 0 and near pi
+  // below 2 pi / 3 from the axis part d = 2 sin(angle) axis and 1 + tr = 2 + 2 cos(angle):
+  // angle = 2 atan2(|d|, 1 + tr), both terms at least 1 away from the small-angle end, where
+  // d keeps the relative accuracy of R's off-diagonal terms
+  const double tr1 = 1.0 + R.trace();
+  if (tr1 > 1.0) {
+    const Eigen::Vector3d d(R(2, 1) - R(1, 2), R(0, 2) - R(2, 0), R(1, 0) - R(0, 1));
+    const double n = d.norm();
+    if (!(n > 0.0)) return Eigen::Vector3d::Zero();
+    return (2.0 * detail::atan2(n, tr1) / n) * d;
+  }
+  // near pi the quaternion route (from the diagonal) is well conditioned
   const Eigen::Quaterniond q(R);
   const double n = q.vec().norm();
   if (n < 1e-300) return Eigen::Vector3d::Zero();

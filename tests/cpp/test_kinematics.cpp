@@ -171,3 +171,40 @@ TEST(Kinematics, OmniClosedFormIsItsChainWalked) {
     }
   }
 }
+
+TEST(Se3, LogIsTheRotationVectorToRounding) {
+  // R from axis and angle by Rodrigues' formula in long double, rounded once; angles from
+  // 1e-12 to pi - 1e-6, dense about 2 pi / 3 (where the log changes route) and pi
+  std::mt19937 rng(31);
+  std::normal_distribution<double> g;
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  double worst = 0.0;
+  for (int trial = 0; trial < 60000; ++trial) {
+    Eigen::Vector3d a(g(rng), g(rng), g(rng));
+    a.normalize();
+    const int kind = trial % 4;
+    const double th = kind == 0   ? std::pow(10.0, -12.0 + 12.0 * u(rng))
+                      : kind == 1 ? 2.0 * M_PI / 3.0 + 1e-3 * (2.0 * u(rng) - 1.0)
+                      : kind == 2 ? M_PI - std::pow(10.0, -6.0 + 5.0 * u(rng))
+                                  : M_PI * u(rng);
+    const long double c = std::cos(static_cast<long double>(th)),
+                      s = std::sin(static_cast<long double>(th));
+    Eigen::Matrix3d R;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        long double v = (1.0L - c) * a[i] * a[j] + (i == j ? c : 0.0L);
+        const int k = 3 - i - j;  // the third index when i != j
+        if (i != j) v += ((i + 1) % 3 == j ? -1.0L : 1.0L) * s * a[k];
+        R(i, j) = static_cast<double>(v);
+      }
+    }
+    const Eigen::Vector3d w = so3_log(R);
+    // within rounding of R's entries: 2e-15 rad, and near pi 2e-16 / (pi - angle) for the
+    // axis (an ill-conditioned direction there)
+    const double tol = 2e-15 + 2e-16 / (M_PI - th);
+    const double err = (w - th * a).norm();
+    worst = std::max(worst, err / tol);
+    ASSERT_LE(err, tol) << "angle " << th << " trial " << trial;
+  }
+  EXPECT_GT(worst, 1e-3);
+}
