@@ -177,11 +177,19 @@ Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
 }
 
 // for ang = acos(y) with s1 = sin(ang) >= 0 given: h = ang / s1 and dh/dy, so that
-// d acos(y)^2 / dy = -2 h (-> -2 as ang -> 0) and d^2 acos(y)^2 / dy^2 = -2 dh/dy
-void acos_squared_terms(double y, double s1, double& ang, double& h, double& dh) noexcept {
+// d acos(y)^2 / dy = -2 h (-> -2 as ang -> 0) and d^2 acos(y)^2 / dy^2 = -2 dh/dy; and, where
+// d2h is given, d^2 h / dy^2 = (ang s1^2 + 3 y (ang y - s1)) / s1^5, 4/15 as ang -> 0 (its
+// terms cancel there: the limit below 1e-2, within 1e-4 of it). One division: 1 / s1.
+void acos_squared_terms(double y, double s1, double& ang, double& h, double& dh,
+                        double* d2h = nullptr) noexcept {
   ang = detail::atan2(s1, y);
-  h = ang > 1e-8 ? ang / s1 : 1.0 + ang * ang / 6.0;
-  dh = ang > 1e-4 ? (ang * y - s1) / (s1 * s1 * s1) : -1.0 / 3.0;
+  const double inv = 1.0 / s1, inv3 = inv * inv * inv;  // (inf at s1 = 0: not used there)
+  h = ang > 1e-8 ? ang * inv : 1.0 + ang * ang / 6.0;
+  dh = ang > 1e-4 ? (ang * y - s1) * inv3 : -1.0 / 3.0;
+  if (d2h) {
+    *d2h = ang < 1e-2 ? 4.0 / 15.0
+                      : (ang * s1 * s1 + 3.0 * y * (ang * y - s1)) * (inv3 * inv * inv);
+  }
 }
 
 // minimiser of f(phi) = w_p g(phi) + w_r (phi - phi_r)^2 between phi0 (g's minimiser) and
@@ -1027,17 +1035,12 @@ double arc_minimiser(const ArcSetup& g, double a, double b, double c, double w_r
         const double so = dir * (st * cs - ct * ss), co = ct * cs + st * ss;
         const double y = std::min(1.0, std::max(-1.0, c + b * co));
         const double s1 = std::sqrt(std::max(0.0, 1.0 - y * y));  // sin of the angle
-        double ang, h, dh;
-        acos_squared_terms(y, s1, ang, h, dh);
+        double ang, h, dh, d2h;
+        acos_squared_terms(y, s1, ang, h, dh, &d2h);
         const double y1 = -b * so, y2 = -b * co;
         f1 = a * st - dir * 2.0 * w_r * h * y1;  // d/dt = dir d/dx
         f2 = a * ct - 2.0 * w_r * (dh * y1 * y1 + h * y2);
-        // f''' = -a sin t - 2 w_r dy (d2h dy^2 + 3 dh y'' - h), dy = dir y1 (y''' = -dy);
-        // d2h = d^2 h / dy^2 = (ang s1^2 + 3 y (ang y - s1)) / s1^5, 4/15 as ang -> 0 (its
-        // terms cancel there: the limit below 1e-2, within 1e-4 of it)
-        const double d2h = ang < 1e-2 ? 4.0 / 15.0
-                                      : (ang * s1 * s1 + 3.0 * y * (ang * y - s1)) /
-                                            (s1 * s1 * s1 * s1 * s1);
+        // f''' = -a sin t - 2 w_r dy (d2h dy^2 + 3 dh y'' - h), dy = dir y1 (y''' = -dy)
         f3 = -a * st - 2.0 * w_r * dir * y1 * (d2h * y1 * y1 + 3.0 * dh * y2 - h);
       },
       0.0, width, advanced(end, t0 - end.x));
