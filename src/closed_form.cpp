@@ -328,7 +328,9 @@ Eigen::Matrix3d turn_stylus(const Eigen::Matrix3d& R_R, const Eigen::Vector3d& u
     k /= s;
   }
   turn = detail::atan2(s, c) * k;
-  const double n = std::hypot(s, c);  // the angle's cosine and sine: (c, s) / n
+  // the angle's cosine and sine: (c, s) / n (s and c of unit vectors, s > 1e-300 here, so
+  // that the squares neither overflow nor all underflow)
+  const double n = std::sqrt(s * s + c * c);
   return rotated(R_R, k, c / n, s / n);
 }
 
@@ -999,7 +1001,10 @@ ArcSetup arc_setup(const Eigen::Vector2d& p, const Eigen::Vector2d& o) noexcept 
   a.span = detail::atan2(cross, dot);  // theta_o - theta_p in [-pi, pi]
   a.dir = a.span > 0.0 ? 1.0 : -1.0;
   a.width = std::abs(a.span);
-  const double n = std::hypot(cross, dot);
+  // |(cross, dot)|: the plain square root where the squares neither overflow nor underflow
+  // (std::hypot, which guards against both, is a library call)
+  const double n2 = cross * cross + dot * dot;
+  const double n = n2 > 1e-300 && n2 < 1e300 ? std::sqrt(n2) : std::hypot(cross, dot);
   a.cs = dot / n;
   a.ss = std::abs(cross) / n;
   return a;

@@ -464,7 +464,9 @@ void keep_renderable(const ControllerModel& M, const Device& dev, ControllerData
     // three passive axes through the handle origin (the Omni's gimbal): P(D; J_p) f is
     // [0; A A^+ m] = [0; m] while the axes span space, A the 3 x 3 of their directions
     const Eigen::Matrix3d A = J_p.bottomRows<3>();
-    if (std::abs(A.determinant()) > 1e-10 * A.colwise().norm().prod()) {
+    // |det A| > 1e-10 |a_1| |a_2| |a_3|, squared (no square roots)
+    const double det = A.determinant();
+    if (det * det > 1e-20 * A.colwise().squaredNorm().prod()) {
       out.wrench_unrendered << 0.0, 0.0, 0.0, f.tail<3>();
       f.tail<3>().setZero();
       return;
@@ -486,9 +488,10 @@ double saturated_spring(const Vector6& e, const Vector6& f, double force_limit,
   double energy = 0.0;
   for (int b = 0; b < 2; ++b) {
     const double ef = e.segment<3>(3 * b).dot(f.segment<3>(3 * b));
-    const double norm = f.segment<3>(3 * b).norm();
+    const double norm2 = f.segment<3>(3 * b).squaredNorm();
     const double limit = b == 0 ? force_limit : moment_limit;
-    const double s = norm > limit ? limit / norm : 1.0;
+    // (the square root only where the force saturates)
+    const double s = norm2 > limit * limit ? limit / std::sqrt(norm2) : 1.0;
     energy += ef * (s - 0.5 * s * s);
   }
   // (an oblique projection can make e^T f negative: a spring holds no negative energy)
@@ -554,9 +557,10 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
             CycleOutput& out) noexcept {
   const int n = dev.dof();
   double scale = 1.0;
-  const double fn = f.head<3>().norm(), mn = f.tail<3>().norm();
-  if (fn > M.max_force) scale = std::min(scale, M.max_force / fn);
-  if (mn > M.max_torque) scale = std::min(scale, M.max_torque / mn);
+  // (the square roots only where a limit acts)
+  const double fn2 = f.head<3>().squaredNorm(), mn2 = f.tail<3>().squaredNorm();
+  if (fn2 > M.max_force * M.max_force) scale = std::min(scale, M.max_force / std::sqrt(fn2));
+  if (mn2 > M.max_torque * M.max_torque) scale = std::min(scale, M.max_torque / std::sqrt(mn2));
   if (scale < 1.0) out.status |= status::kForceClamped;
   advance_ramp(M, d, out);
   f *= scale * out.ramp;
