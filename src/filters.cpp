@@ -456,7 +456,9 @@ Vector6 WeightedProjector::residual(const Vector6& v_in) const noexcept {
   if (!finite_) return Vector6::Constant(std::numeric_limits<double>::quiet_NaN());
   const Vector6 v = rotated_ ? Vector6(V_.transpose() * v_in) : v_in;
   Vector6 out;
-  if (support_ == 6 && rank_ == 6) {
+  if (column_) {
+    out = (wj_.dot(v) * inv_jwj_) * J_.col(0) - v;  // fit()'s theta_dot, written out
+  } else if (support_ == 6 && rank_ == 6) {
     out.setZero();  // A of full row rank: every twist followed
   } else if (null_ready_) {
     // S (J theta_dot - v) = -(I - Q1 Q1^T) S v = -Q2 Q2^T S v, Q2 Q's last column
