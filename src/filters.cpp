@@ -175,6 +175,7 @@ void WeightedProjector::compute_all(const Job* jobs, int count) noexcept {
     count = kMaxJobs;
   }
   int steps[kMaxJobs];
+  bool factorising = false;
   for (int i = 0; i < count; ++i) {
     WeightedProjector& p = *jobs[i].projector;
     p.set(*jobs[i].J, *jobs[i].w);
@@ -185,7 +186,9 @@ void WeightedProjector::compute_all(const Job* jobs, int count) noexcept {
     p.deferred_ = p.full_row_rank_certified();
     if (p.deferred_) p.rank_ = p.support_;
     steps[i] = p.deferred_ ? 0 : p.start_factorisation();
+    factorising = factorising || !p.deferred_;
   }
+  if (!factorising) return;  // (single columns in closed form, certified ranks deferred)
   // step k of every factorisation before step k + 1 of any: the steps of different
   // factorisations are independent, so their latencies overlap
   for (int k = 0; k < 6; ++k) {
