@@ -163,6 +163,11 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
   const double zero = 0.0;
   chain().forward(&zero, T);
   rest_ = T.linear();
+  zero_cross_ = normal_.cross(zero_direction_);
+  for (int j = 0; j < 3; ++j) {
+    rest_cross_.col(j) = normal_.cross(rest_.col(j));
+    rest_axial_.col(j) = normal_.dot(rest_.col(j)) * normal_;
+  }
 }
 
 
@@ -177,7 +182,7 @@ PlanarArm::Setup PlanarArm::setup(const Pose& target) const noexcept {
   Setup g;
   // position: |pivot + L R_n(x) d - p_R|^2 = const - 2 L r cos(x - theta_p)
   const Eigen::Vector3d v = target.translation() - pivot_;
-  const double vx = v.dot(zero_direction_), vy = v.dot(normal_.cross(zero_direction_));
+  const double vx = v.dot(zero_direction_), vy = v.dot(zero_cross_);
   // (plain square roots: lengths and traces far from overflow; below 1e-154, where the
   // squares underflow, a term that small is as good as absent)
   g.r = std::sqrt(vx * vx + vy * vy);
@@ -207,12 +212,8 @@ void PlanarArm::finish(const Pose& target, double x, double c, double s,
   theta[0] = x + 2.0 * M_PI * detail::round_half_away((start[0] - x) / (2.0 * M_PI));
   // the pose and Jacobian from the solve's cosine and sine (the chain's to rounding): the
   // rest orientation turned by x about n, the handle at L (c d + s n x d) from the pivot
-  const Eigen::Vector3d arm =
-      length_ * (c * zero_direction_ + s * normal_.cross(zero_direction_));
-  for (int j = 0; j < 3; ++j) {
-    const Eigen::Vector3d u = rest_.col(j);
-    T.linear().col(j) = c * u + s * normal_.cross(u) + ((1.0 - c) * normal_.dot(u)) * normal_;
-  }
+  const Eigen::Vector3d arm = length_ * (c * zero_direction_ + s * zero_cross_);
+  T.linear() = c * (rest_ - rest_axial_) + s * rest_cross_ + rest_axial_;
   T.translation() = pivot_ + arm;
   T.makeAffine();
   J.resize(6, 1);

@@ -168,6 +168,10 @@ class PlanarArm final : public ChainMechanism {
   Eigen::Vector3d pivot_, normal_, zero_direction_;
   double length_;
   Eigen::Matrix3d rest_;  // the handle's orientation at theta = 0
+  // R_n(x) u = (u - a) cos x + (n x u) sin x + a, a = (n . u) n (Rodrigues), for the zero
+  // direction and the columns of rest_: their n x u and a, once
+  Eigen::Vector3d zero_cross_;
+  Eigen::Matrix3d rest_cross_, rest_axial_;
 };
 
 /// Paper Fig. 3, PPRRR: the tip slides on the plane through `plane_point` with unit
