@@ -47,6 +47,22 @@ inline void sincos(double x, double& s, double& c) noexcept {
   c = ((q + 1) & 2) ? -b : b;
 }
 
+/// (atan(u) / u - 1) / z, z = u^2, for |u| <= tan(pi/8) (z <= 3 - 2 sqrt(2)): atan(u) = u + u z
+/// P(z), P a Chebyshev fit of (atan(u) - u) / u^3 on that interval, degree 10 (its error,
+/// times z, below 1e-17), evaluated by Estrin's scheme.
+inline double atan_series(double z) noexcept {
+  const double z2 = z * z, z4 = z2 * z2;
+  const double p01 = -0.3333333333333333 + 0.1999999999999552 * z;
+  const double p23 = -0.14285714284666542 + 0.11111111015256361 * z;
+  const double p45 = -0.09090904578123903 + 0.07692183190826087 * z;
+  const double p67 = -0.06664511447381948 + 0.0585814891280221 * z;
+  const double p89 = -0.0508544973794026 + 0.03923165829558719 * z;
+  return (p01 + p23 * z2) + (p45 + p67 * z2) * z4 + (p89 - 0.01917688711906226 * z2) * (z4 * z4);
+}
+
+/// tan(pi/8)^2 = 3 - 2 sqrt(2): atan_series' interval.
+constexpr double kTanPi8Squared = 0.17157287525380990;
+
 /// atan2(y, x) in [-pi, pi]: std::atan2's value to 2 ulp, and its signs of zero.
 inline double atan2(double y, double x) noexcept {
   const double ax = std::abs(x), ay = std::abs(y);
@@ -56,17 +72,8 @@ inline double atan2(double y, double x) noexcept {
   // (the same division), so that |u| <= tan(pi/8) everywhere
   const bool upper = lo > 0.41421356237309503 * hi;
   const double u = (upper ? lo - hi : lo) / (upper ? lo + hi : hi);
-  // atan(u) = u + u z P(z), z = u^2 <= 3 - 2 sqrt(2): P a Chebyshev fit of
-  // (atan(u) - u) / u^3 on that interval, degree 10 (its error, times z, below 1e-17),
-  // evaluated by Estrin's scheme
-  const double z = u * u, z2 = z * z, z4 = z2 * z2;
-  const double p01 = -0.3333333333333333 + 0.1999999999999552 * z;
-  const double p23 = -0.14285714284666542 + 0.11111111015256361 * z;
-  const double p45 = -0.09090904578123903 + 0.07692183190826087 * z;
-  const double p67 = -0.06664511447381948 + 0.0585814891280221 * z;
-  const double p89 = -0.0508544973794026 + 0.03923165829558719 * z;
-  const double P = (p01 + p23 * z2) + (p45 + p67 * z2) * z4 +
-                   (p89 - 0.01917688711906226 * z2) * (z4 * z4);
+  // atan(u) = u + u z P(z), z = u^2
+  const double z = u * u, P = atan_series(z);
   // atan2 = k pi/4 + s atan(u): k pi/4 as a double and its remainder, added last
   constexpr double kHi[5] = {0.0, 0.7853981633974483, 1.5707963267948966, 2.356194490192345,
                              3.141592653589793};
