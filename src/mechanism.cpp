@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "closed_form.hpp"
+#include "rotation_log.hpp"
 #include "trig.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/validate.hpp"
@@ -172,10 +173,14 @@ PlanarArm::PlanarArm(const Eigen::Vector3d& pivot, const Eigen::Vector3d& normal
 
 
 // What both placements of one handle pose share: the handle's distance from the pivot in
-// the plane, the rotation's terms, and the arc's ends (detail::arc_setup)
+// the plane, the rotation's terms, the arc's ends (detail::arc_setup), and the pose error's
+// rotation as a function of the angle x: R_R R(x)^T = (R_n(x) M)^T, its 1 + trace
+// tr0 + trA cos x + trB sin x and its axis part dc cos x + ds sin x + d0
 struct PlanarArm::Setup {
   double r = 0.0, b = 0.0, c = 0.0;
   detail::ArcSetup arc;
+  double tr0 = 0.0, trA = 0.0, trB = 0.0;
+  Eigen::Vector3d dc, ds, d0;
 };
 
 PlanarArm::Setup PlanarArm::setup(const Pose& target) const noexcept {
@@ -196,6 +201,18 @@ PlanarArm::Setup PlanarArm::setup(const Pose& target) const noexcept {
   g.b = 0.5 * std::sqrt(A * A + B * B);
   g.c = 0.5 * (nMn - 1.0);
   g.arc = detail::arc_setup(Eigen::Vector2d(vx, vy), Eigen::Vector2d(A, B));
+  // R_n(x) = cos x (I - n n^T) + sin x [n]x + n n^T, so the axis part a(Y) = (Y21 - Y12,
+  // Y02 - Y20, Y10 - Y01) of X = R_n(x) M is cos x (m - k) + sin x h + k with m = a(M),
+  // k = a(n n^T M) = (M^T n) x n, h = a([n]x M) = (tr(M) I - M) n; the error's rotation is
+  // X^T, whose axis part is the negative
+  g.tr0 = 1.0 + nMn;
+  g.trA = A;
+  g.trB = B;
+  const Eigen::Vector3d m(M(2, 1) - M(1, 2), M(0, 2) - M(2, 0), M(1, 0) - M(0, 1));
+  const Eigen::Vector3d k = (M.transpose() * normal_).cross(normal_);
+  g.dc = k - m;
+  g.ds = M * normal_ - M.trace() * normal_;
+  g.d0 = -k;
   return g;
 }
 
@@ -204,7 +221,7 @@ double PlanarArm::angle(const Setup& g, double w_p, double w_r, double& c,
   return detail::arc_minimiser(g.arc, 2.0 * w_p * length_ * g.r, g.b, g.c, w_r, c, s);
 }
 
-void PlanarArm::finish(const Pose& target, double x, double c, double s,
+void PlanarArm::finish(const Setup& g, const Pose& target, double x, double c, double s,
                        const JointVector& start, JointVector& theta, Pose& T, Jacobian& J,
                        Vector6& e) const noexcept {
   theta.resize(1);
@@ -218,7 +235,14 @@ void PlanarArm::finish(const Pose& target, double x, double c, double s,
   T.makeAffine();
   J.resize(6, 1);
   J.col(0) << normal_.cross(arm), normal_;
-  e = pose_error(target, T);
+  // pose_error(target, T) from the setup's terms, below 2 pi / 3 (near pi from T)
+  const double tr1 = g.tr0 + g.trA * c + g.trB * s;
+  if (tr1 > 1.0) {
+    e << target.translation() - T.translation(),
+        detail::log_from_axis_part(c * g.dc + s * g.ds + g.d0, tr1);
+  } else {
+    e = pose_error(target, T);
+  }
 }
 
 bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& start,
@@ -226,8 +250,9 @@ bool PlanarArm::place(const Pose& target, const Vector6& w, const JointVector& s
   double w_p, w_r;
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   double c, s;
-  const double x = angle(setup(target), w_p, w_r, c, s);
-  finish(target, x, c, s, start, theta, T, J, e);
+  const Setup g = setup(target);
+  const double x = angle(g, w_p, w_r, c, s);
+  finish(g, target, x, c, s, start, theta, T, J, e);
   return true;
 }
 
@@ -239,9 +264,9 @@ bool PlanarArm::place_pair(const Pose& target, const PlacementIO& a,
   // (one after the other: side by side, as Probe::place_pair does, measured slower here)
   double c, s;
   const double xa = angle(g, wp_a, wr_a, c, s);
-  finish(target, xa, c, s, *a.start, *a.theta, *a.T, *a.J, *a.e);
+  finish(g, target, xa, c, s, *a.start, *a.theta, *a.T, *a.J, *a.e);
   const double xb = angle(g, wp_b, wr_b, c, s);
-  finish(target, xb, c, s, *b.start, *b.theta, *b.T, *b.J, *b.e);
+  finish(g, target, xb, c, s, *b.start, *b.theta, *b.T, *b.J, *b.e);
   return true;
 }
 

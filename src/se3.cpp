@@ -1,5 +1,6 @@
 #include "virtmech/se3.hpp"
 
+#include "rotation_log.hpp"
 #include "trig.hpp"
 
 #include <cmath>
@@ -13,21 +14,10 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& w) noexcept {
 }
 
 Eigen::Vector3d so3_log(const Eigen::Matrix3d& R) noexcept {
-  // below 2 pi / 3 from the axis part d = 2 sin(angle) axis and 1 + tr = 2 + 2 cos(angle)
-  // (at least 1 there): angle = 2 atan2(|d|, 1 + tr); d keeps the relative accuracy of R's
-  // off-diagonal terms at small angles
   const double tr1 = 1.0 + R.trace();
-  if (tr1 > 1.0) {
-    const Eigen::Vector3d d(R(2, 1) - R(1, 2), R(0, 2) - R(2, 0), R(1, 0) - R(0, 1));
-    // up to pi / 4, u = |d| / (1 + tr) = tan(angle / 2) <= tan(pi / 8), and angle d / |d| =
-    // 2 (atan(u) / u) d / (1 + tr) needs neither |d| nor a second division
-    const double dd = d.squaredNorm();
-    if (dd <= detail::kTanPi8Squared * tr1 * tr1) {
-      const double inv = 1.0 / tr1, z = dd * inv * inv;
-      return (2.0 * inv * (1.0 + z * detail::atan_series(z))) * d;
-    }
-    const double n = std::sqrt(dd);
-    return (2.0 * detail::atan2(n, tr1) / n) * d;
+  if (tr1 > 1.0) {  // below 2 pi / 3
+    return detail::log_from_axis_part(
+        Eigen::Vector3d(R(2, 1) - R(1, 2), R(0, 2) - R(2, 0), R(1, 0) - R(0, 1)), tr1);
   }
   // near pi the quaternion route (from the diagonal) is well conditioned
   const Eigen::Quaterniond q(R);

@@ -163,7 +163,8 @@ class PlanarArm final : public ChainMechanism {
   struct Setup;  // what both placements of one target share
   Setup setup(const Pose& target) const noexcept;
   double angle(const Setup& g, double w_p, double w_r, double& c, double& s) const noexcept;
-  void finish(const Pose& target, double x, double c, double s, const JointVector& start,
+  void finish(const Setup& g, const Pose& target, double x, double c, double s,
+              const JointVector& start,
               JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept;
   Eigen::Vector3d pivot_, normal_, zero_direction_;
   double length_;

@@ -323,7 +323,7 @@ TEST(PlaceHooks, ReturnTheChainsPoseJacobianAndError) {
       ASSERT_EQ(J.cols(), J_chain.cols()) << name;
       EXPECT_LE((T.matrix() - T_chain.matrix()).norm(), 1e-12) << name << " " << k;
       EXPECT_LE((J - J_chain).norm(), 1e-12) << name << " " << k;
-      EXPECT_LE((e - pose_error(target, T_chain)).norm(), 1e-10) << name << " " << k;
+      EXPECT_LE((e - pose_error(target, T_chain)).norm(), 1e-14) << name << " " << k;
     }
     EXPECT_GT(placed, 50) << name;  // (CurveGuide's Newton declines some, from home)
   }
