@@ -158,7 +158,9 @@ struct CycleOutput {
   Vector6 wrench_passivity = Vector6::Zero();
   double passivity_scale = 1.0;  //!< the range term's factor, in [0, 1]
   std::uint32_t status = status::kOk;
-  double computation_time_us = 0.0;  //!< this cycle's own computation time [µs]
+  /// this cycle's own computation time [µs] (the processor's time-stamp counter where it is
+  /// invariant, else steady_clock)
+  double computation_time_us = 0.0;
 };
 
 /// One placement of the mechanism (eqs. 18-20) with its state: used twice per cycle, with

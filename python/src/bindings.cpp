@@ -1001,7 +1001,8 @@ NB_MODULE(_core, m) {
       .def_ro("passivity_scale", &CycleOutput::passivity_scale,
               "The range term's factor the energy tank applied, in [0, 1].")
       .def_ro("status", &CycleOutput::status, "Status bits (virtmech.status).")
-      .def_ro("computation_time_us", &CycleOutput::computation_time_us, "[µs]")
+      .def_ro("computation_time_us", &CycleOutput::computation_time_us,
+              "This cycle's own computation time [µs] (the time-stamp counter where invariant).")
       .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); })
       .def_prop_ro("fault", [](const CycleOutput& o) { return (o.status & status::kFaultMask) != 0; });
 
