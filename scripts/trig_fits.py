@@ -1,7 +1,7 @@
 """The polynomial coefficients of src/trig.hpp, from mpmath (50 digits).
 
 Chebyshev fits (mpmath.chebyfit) of
-  (atan(u) - u) / u^3         in z = u^2 on [0, 3 - 2 sqrt(2)]   (|u| <= tan(pi/8)), 11 terms
+  (atan(u) - u) / u^3         in z = u^2 on [0, 1/4]   (|u| <= 1/2),              13 terms
   (sin r - r) / r^3           in z = r^2 on [0, (pi/4)^2],                             6 terms
   (cos r - 1 + r^2/2) / r^4   in z = r^2 on [0, (pi/4)^2],                             6 terms
 and the constants of the reductions. Run: python scripts/trig_fits.py
@@ -41,7 +41,7 @@ def split(x, parts, bits=33):
 
 def main():
     fit("atan P", _ratio(lambda z: (mp.atan(mp.sqrt(z)) - mp.sqrt(z)) / (mp.sqrt(z) * z),
-                         mp.mpf(-1) / 3), 0, 3 - 2 * mp.sqrt(2), 11)
+                         mp.mpf(-1) / 3), 0, mp.mpf(1) / 4, 13)
     fit("sin S", _ratio(lambda z: (mp.sin(mp.sqrt(z)) - mp.sqrt(z)) / (mp.sqrt(z) * z),
                         mp.mpf(-1) / 6), 0, (mp.pi / 4) ** 2, 6)
     fit("cos C", _ratio(lambda z: (mp.cos(mp.sqrt(z)) - 1 + z / 2) / (z * z), mp.mpf(1) / 24),
@@ -51,7 +51,7 @@ def main():
     for k in range(5):
         v = k * mp.pi / 4
         print(f"  {float(v)!r} {float(v - mp.mpf(float(v)))!r}")
-    print("tan(pi/8):", float(mp.tan(mp.pi / 8)), " 2/pi:", float(2 / mp.pi))
+    print("2/pi:", float(2 / mp.pi))
 
 
 if __name__ == "__main__":

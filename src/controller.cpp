@@ -480,6 +480,11 @@ void keep_renderable(const ControllerModel& M, const Device& dev, ControllerData
   f -= out.wrench_unrendered;
 }
 
+// |f| > limit for |f|^2 = norm2, without the square root where limit^2 is finite
+inline bool exceeds(double norm2, double limit) noexcept {
+  return limit < 1e150 ? norm2 > limit * limit : std::sqrt(norm2) > limit;
+}
+
 // The energy a spring holds whose force at the error e is f (a linear spring: e^T f / 2),
 // its force saturating at the wrench limits: per block of three axes, beyond the limit it
 // grows with the limit times |e| (e^T f (s - s^2 / 2), s = limit / |f|).
@@ -491,7 +496,7 @@ double saturated_spring(const Vector6& e, const Vector6& f, double force_limit,
     const double norm2 = f.segment<3>(3 * b).squaredNorm();
     const double limit = b == 0 ? force_limit : moment_limit;
     // (the square root only where the force saturates)
-    const double s = norm2 > limit * limit ? limit / std::sqrt(norm2) : 1.0;
+    const double s = exceeds(norm2, limit) ? limit / std::sqrt(norm2) : 1.0;
     energy += ef * (s - 0.5 * s * s);
   }
   // (an oblique projection can make e^T f negative: a spring holds no negative energy)
@@ -559,8 +564,8 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
   double scale = 1.0;
   // (the square roots only where a limit acts)
   const double fn2 = f.head<3>().squaredNorm(), mn2 = f.tail<3>().squaredNorm();
-  if (fn2 > M.max_force * M.max_force) scale = std::min(scale, M.max_force / std::sqrt(fn2));
-  if (mn2 > M.max_torque * M.max_torque) scale = std::min(scale, M.max_torque / std::sqrt(mn2));
+  if (exceeds(fn2, M.max_force)) scale = std::min(scale, M.max_force / std::sqrt(fn2));
+  if (exceeds(mn2, M.max_torque)) scale = std::min(scale, M.max_torque / std::sqrt(mn2));
   if (scale < 1.0) out.status |= status::kForceClamped;
   advance_ramp(M, d, out);
   f *= scale * out.ramp;

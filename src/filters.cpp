@@ -460,7 +460,8 @@ Vector6 WeightedProjector::residual(const Vector6& v_in) const noexcept {
   const Vector6 v = rotated_ ? Vector6(V_.transpose() * v_in) : v_in;
   Vector6 out;
   if (column_) {
-    out = (wj_.dot(v) * inv_jwj_) * J_.col(0) - v;  // fit()'s theta_dot, written out
+    // fit()'s theta_dot, written out (rank 0: none, also for a v that is not finite)
+    out = rank_ ? Vector6((wj_.dot(v) * inv_jwj_) * J_.col(0) - v) : Vector6(-v);
   } else if (support_ == 6 && rank_ == 6) {
     out.setZero();  // A of full row rank: every twist followed
   } else if (null_ready_) {

@@ -13,10 +13,10 @@ namespace virtmech::detail {
 /// angle * axis from d and tr1 = 1 + tr R > 1: angle = 2 atan2(|d|, tr1). d keeps the
 /// relative accuracy of R's off-diagonal terms at small angles.
 inline Eigen::Vector3d log_from_axis_part(const Eigen::Vector3d& d, double tr1) noexcept {
-  // up to pi / 4, u = |d| / tr1 = tan(angle / 2) <= tan(pi / 8), and angle d / |d| =
-  // 2 (atan(u) / u) d / tr1 needs neither |d| nor a second division
+  // up to 2 atan(1/2) (53 degrees), u = |d| / tr1 = tan(angle / 2) <= 1/2, and angle d / |d|
+  // = 2 (atan(u) / u) d / tr1 needs neither |d| nor a second division
   const double dd = d.squaredNorm();
-  if (dd <= kTanPi8Squared * tr1 * tr1) {
+  if (dd <= kAtanSeriesMaxZ * tr1 * tr1) {
     const double inv = 1.0 / tr1, z = dd * inv * inv;
     return (2.0 * inv * (1.0 + z * atan_series(z))) * d;
   }

@@ -6,6 +6,10 @@
 // scripts/trig_fits.py's (mpmath, 50 digits). Internal to the core.
 #pragma once
 
+#if defined(__FAST_MATH__)
+#error "src/trig.hpp needs IEEE arithmetic (its reductions round by adding and subtracting a constant): build the core without -ffast-math"
+#endif
+
 #include <algorithm>
 #include <cmath>
 
@@ -47,30 +51,33 @@ inline void sincos(double x, double& s, double& c) noexcept {
   c = ((q + 1) & 2) ? -b : b;
 }
 
-/// (atan(u) / u - 1) / z, z = u^2, for |u| <= tan(pi/8) (z <= 3 - 2 sqrt(2)): atan(u) = u + u z
-/// P(z), P a Chebyshev fit of (atan(u) - u) / u^3 on that interval, degree 10 (its error,
-/// times z, below 1e-17), evaluated by Estrin's scheme.
+/// (atan(u) / u - 1) / z, z = u^2, for |u| <= 1/2 (z <= 1/4): atan(u) = u + u z P(z), P a
+/// Chebyshev fit of (atan(u) - u) / u^3 on that interval, degree 12 (its error, times z,
+/// below 1e-18), evaluated by Estrin's scheme.
 inline double atan_series(double z) noexcept {
-  const double z2 = z * z, z4 = z2 * z2;
-  const double p01 = -0.3333333333333333 + 0.1999999999999552 * z;
-  const double p23 = -0.14285714284666542 + 0.11111111015256361 * z;
-  const double p45 = -0.09090904578123903 + 0.07692183190826087 * z;
-  const double p67 = -0.06664511447381948 + 0.0585814891280221 * z;
-  const double p89 = -0.0508544973794026 + 0.03923165829558719 * z;
-  return (p01 + p23 * z2) + (p45 + p67 * z2) * z4 + (p89 - 0.01917688711906226 * z2) * (z4 * z4);
+  const double z2 = z * z, z4 = z2 * z2, z8 = z4 * z4;
+  const double p01 = -0.3333333333333333 + 0.19999999999999488 * z;
+  const double p23 = -0.14285714285599188 + 0.11111111100917376 * z;
+  const double p45 = -0.09090908620322523 + 0.07692294712540285 * z;
+  const double p67 = -0.06666435677235948 + 0.05879578429582425 * z;
+  const double p89 = -0.05240099507994713 + 0.04628024868570153 * z;
+  const double p1011 = -0.03806653672057366 + 0.025006503566489507 * z;
+  return (p01 + p23 * z2) + (p45 + p67 * z2) * z4 +
+         ((p89 + p1011 * z2) - 0.009215792047089858 * z4) * z8;
 }
 
-/// tan(pi/8)^2 = 3 - 2 sqrt(2): atan_series' interval.
-constexpr double kTanPi8Squared = 0.17157287525380990;
+/// The largest z = u^2 atan_series serves.
+constexpr double kAtanSeriesMaxZ = 0.25;
 
 /// atan2(y, x) in [-pi, pi]: std::atan2's value to 2 ulp, and its signs of zero.
 inline double atan2(double y, double x) noexcept {
   const double ax = std::abs(x), ay = std::abs(y);
   const double hi = std::max(ax, ay), lo = std::min(ax, ay);
   if (!(ax < 1e300 && ay < 1e300 && hi > 1e-300)) return std::atan2(y, x);  // (NaN: here)
-  // atan(lo / hi) in [0, pi/4]: above tan(pi/8) as pi/4 + atan(u), u = (lo - hi) / (lo + hi)
-  // (the same division), so that |u| <= tan(pi/8) everywhere
-  const bool upper = lo > 0.41421356237309503 * hi;
+  // atan(lo / hi) in [0, pi/4]: from lo = hi / 2 on as pi/4 + atan(u), u = (lo - hi) /
+  // (lo + hi) (the same division; lo - hi exact there, by Sterbenz's lemma), so that
+  // |u| <= 1/2 everywhere
+  const bool upper = lo >= 0.5 * hi;
   const double u = (upper ? lo - hi : lo) / (upper ? lo + hi : hi);
   // atan(u) = u + u z P(z), z = u^2
   const double z = u * u, P = atan_series(z);

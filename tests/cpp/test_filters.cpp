@@ -243,6 +243,21 @@ TEST(FilterProjector, FullRowRankOnTheWeightedAxesKeepsTheirWrenchesExactly) {
   }
 }
 
+TEST(FilterProjector, ARankZeroColumnFollowsNothing) {
+  // a zero column (a joint whose motion does not move the handle) fits no twist: the
+  // residual is -v, also for a v that is not finite, as for several columns of rank 0
+  for (const int m : {1, 3}) {
+    const Jacobian J = Jacobian::Zero(6, m);
+    WeightedProjector p;
+    p.compute(J, Vector6(Vector6::Ones()));
+    ASSERT_EQ(p.rank(), 0) << m;
+    Vector6 v;
+    v << std::numeric_limits<double>::infinity(), 0.0, 1.0, -2.0, 0.0, 3.0;
+    const Vector6 r = p.residual(v);
+    for (int i = 0; i < 6; ++i) EXPECT_EQ(r[i], -v[i]) << m << " " << i;
+  }
+}
+
 TEST(FilterProjector, ResidualIsTheWeightedLeastSquaresResidual) {
   // residual(v) = J theta - v, theta the weighted minimum-norm least-squares fit of v,
   // against that fit in long double (Eigen's complete orthogonal decomposition): Jacobians
