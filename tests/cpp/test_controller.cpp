@@ -162,16 +162,31 @@ TEST(Controller, PlanarFarStartPullsToCircleSlightlyTowardHandleAngle) {
   EXPECT_LT(std::abs(out.wrench.head<3>().normalized().dot(tangent)), 1e-6);
 }
 
+namespace {
+
+// The 6R arm's pose at q0 (T0), and a circle mechanism through it: pivot one length L ahead
+// on the stylus, the plane normal the handle's y axis.
+struct ArmCircle {
+  JointVector q0 = (JointVector(6) << 0.2, -0.4, 0.9, 0.3, 0.7, -0.2).finished();
+  Pose T0;
+  double L = 0.08;
+  std::shared_ptr<PlanarArm> mech;
+  explicit ArmCircle(const Device& arm) {
+    arm.forward(q0.data(), T0);
+    mech = std::make_shared<PlanarArm>(T0.translation() + L * T0.linear().col(2),
+                                       T0.linear().col(1), L, -T0.linear().col(2));
+  }
+};
+
+}  // namespace
+
 TEST(Controller, FullyActuatedFreeAlongMechanismStiffAcross) {
   auto arm6 = six_dof_arm();
-  JointVector q0(6);
-  q0 << 0.2, -0.4, 0.9, 0.3, 0.7, -0.2;
-  Pose T0;
-  arm6->forward(q0.data(), T0);
-  // a circle mechanism through the device's pose: pivot one length ahead on the stylus
-  const double L = 0.08;
-  auto mech = std::make_shared<PlanarArm>(T0.translation() + L * T0.linear().col(2),
-                                          T0.linear().col(1), L, -T0.linear().col(2));
+  const ArmCircle scene(*arm6);
+  const JointVector& q0 = scene.q0;
+  const Pose& T0 = scene.T0;
+  const double L = scene.L;
+  const auto mech = scene.mech;
   Controller c(arm6, mech, no_ramp());
   EXPECT_FALSE(c.model().under_actuated_term);
   CycleOutput out;
@@ -559,4 +574,38 @@ TEST(Mechanism, SurfaceProbesConstraintWrenchDoesNoWorkOnItsMotion) {
     }
   }
   EXPECT_EQ(checked, 400);
+}
+
+TEST(Controller, ForceLimitHoldsForForcesWhoseSquaresOverflow) {
+  // a force limit of 1e200 N against a spring of 1e210 N/m pulled 5 cm: |f|^2 overflows,
+  // and the limit still acts (limits this large are compared without squaring them; with
+  // |f| itself overflowing, the scale is limit / inf = 0). The 6R arm with limits that
+  // large (its own are 40 N and 20 N m), so that no other limit acts first.
+  DeviceLimits big;
+  big.actuated = std::vector<bool>(6, true);
+  big.torque_limit = std::vector<double>(6, 1e300);
+  big.max_force = 1e200;
+  big.max_torque = 1e200;
+  auto arm6 = std::make_shared<SerialDevice>("Arm6R", six_dof_arm()->chain(), big);
+  const ArmCircle scene(*arm6);
+  const JointVector& q0 = scene.q0;
+  const Pose& T0 = scene.T0;
+  const auto mech = scene.mech;
+  ControllerSettings s = no_ramp();
+  s.kp = Vector6::Constant(1e210);
+  s.kv = Vector6::Zero();
+  s.max_force = 1e200;
+  s.max_torque = 1e200;
+  s.passivity = Passivity::kOff;
+  Controller c(arm6, mech, s);
+  const JointVector zero = JointVector::Zero(6);
+  CycleOutput out;
+  c.step(q0.data(), zero.data(), out);
+  Pose T = T0;
+  T.translation() += 0.05 * T0.linear().col(1);  // along the plane normal: across
+  const JointVector q = inverse_kinematics(*arm6, T, q0);
+  c.step(q.data(), zero.data(), out);
+  ASSERT_TRUE(out.wrench.allFinite());
+  EXPECT_TRUE(out.status & status::kForceClamped);
+  EXPECT_LE(out.wrench.head<3>().norm(), 1e200);
 }
