@@ -4,7 +4,8 @@ Chebyshev fits (mpmath.chebyfit) of
   (atan(u) - u) / u^3         in z = u^2 on [0, 1/4]   (|u| <= 1/2),              13 terms
   (sin r - r) / r^3           in z = r^2 on [0, (pi/4)^2],                             6 terms
   (cos r - 1 + r^2/2) / r^4   in z = r^2 on [0, (pi/4)^2],                             6 terms
-and the constants of the reductions. Run: python scripts/trig_fits.py
+and the constants of the reductions. Run: python scripts/trig_fits.py (mpmath comes with
+the test extra: scripts/setup.sh, or pip install .[test]).
 """
 
 import mpmath as mp
