@@ -37,6 +37,7 @@ extern "C" {
 #define VM_STATUS_FAULT_NONFINITE_OUTPUT (1u << 9)
 #define VM_STATUS_FAULT_BAD_SIZE (1u << 10)
 #define VM_STATUS_FAULT_OUT_OF_RANGE (1u << 11) /* q beyond the joint range + margin */
+#define VM_STATUS_FAULT_IMPLAUSIBLE_VELOCITY (1u << 12) /* dq beyond the device's speeds + margin */
 #define VM_STATUS_FAULT_MASK 0xFF00u
 
 /* Largest number of joints of a device or mechanism. */

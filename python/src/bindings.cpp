@@ -250,7 +250,8 @@ nb::list status_names(std::uint32_t s) {
       {status::kFaultNonFiniteInput, "fault_nonfinite_input"},
       {status::kFaultNonFiniteOutput, "fault_nonfinite_output"},
       {status::kFaultBadSize, "fault_bad_size"},
-      {status::kFaultOutOfRange, "fault_out_of_range"}};
+      {status::kFaultOutOfRange, "fault_out_of_range"},
+      {status::kFaultImplausibleVelocity, "fault_implausible_velocity"}};
   nb::list l;
   for (const auto& [bit, name] : names)
     if (s & bit) l.append(name);
@@ -333,6 +334,7 @@ nb::dict model_dict(const ControllerModel& m) {
   d["error_velocity"] = m.error_velocity == ErrorVelocity::kHandle ? "handle" : "relative";
   d["period_s"] = m.period_s;
   d["ramp_cycles"] = m.ramp_cycles;
+  d["fault_ramp_cycles"] = m.fault_ramp_cycles;
   d["watchdog_s"] = m.watchdog_s;
   d["max_force"] = m.max_force;
   d["max_torque"] = m.max_torque;
@@ -341,8 +343,12 @@ nb::dict model_dict(const ControllerModel& m) {
   d["passivity"] = m.passivity == Passivity::kOff ? "off" : "energy_tank";
   d["passivity_max_energy_j"] = m.passivity_max_energy;
   d["passivity_fade_j"] = m.passivity_fade;
+  d["passivity_budget_j"] = m.passivity_budget;
+  d["passivity_fade_step"] = m.passivity_fade_step;
+  d["passivity_play"] = Eigen::VectorXd(m.passivity_play);
   d["q_min"] = Eigen::VectorXd(m.q_min);
   d["q_max"] = Eigen::VectorXd(m.q_max);
+  d["dq_max"] = Eigen::VectorXd(m.dq_max);
   nb::list r;
   for (bool b : m.renderable) r.append(b);
   d["renderable"] = r;
@@ -369,6 +375,7 @@ NB_MODULE(_core, m) {
   m.attr("STATUS_FAULT_NONFINITE_OUTPUT") = status::kFaultNonFiniteOutput;
   m.attr("STATUS_FAULT_BAD_SIZE") = status::kFaultBadSize;
   m.attr("STATUS_FAULT_OUT_OF_RANGE") = status::kFaultOutOfRange;
+  m.attr("STATUS_FAULT_IMPLAUSIBLE_VELOCITY") = status::kFaultImplausibleVelocity;
   m.attr("STATUS_FAULT_MASK") = status::kFaultMask;
   {
     // ControllerSettings' defaults, the one place they live (the scenario format takes them)
@@ -382,6 +389,12 @@ NB_MODULE(_core, m) {
     d["passivity"] = s.passivity == Passivity::kOff ? "off" : "energy_tank";
     d["passivity_max_energy_j"] = s.passivity_max_energy_j;
     d["passivity_fade_j"] = s.passivity_fade_j;
+    d["passivity_budget_j"] = s.passivity_budget_j;
+    d["passivity_fade_time_s"] = s.passivity_fade_time_s;
+    d["passivity_resolution_rad"] = s.passivity_resolution_rad;
+    d["passivity_resolution_m"] = s.passivity_resolution_m;
+    d["velocity_margin_rad_s"] = s.velocity_margin_rad_s;
+    d["velocity_margin_m_s"] = s.velocity_margin_m_s;
     m.attr("CONTROLLER_DEFAULTS") = d;
   }
   bind_geometry(m);
@@ -729,6 +742,9 @@ NB_MODULE(_core, m) {
                    "Joint torque limits (dof,) [N·m or N]; 0 for passive joints.")
       .def_prop_ro("max_force", &Device::max_force, "[N]")
       .def_prop_ro("max_torque", &Device::max_torque, "[N·m]")
+      .def_prop_ro("max_velocity", [](const Device& d) { return Eigen::VectorXd(d.max_velocity()); },
+                   "Fastest plausible joint speeds (dof,) [rad/s or m/s]: a faster dq is a "
+                   "fault (with the controller's velocity margin).")
       .def_prop_ro("stiffness", &Device::stiffness, "Default translational Kp [N/m].")
       .def_prop_ro("damping", &Device::damping, "Default translational Kv [N·s/m].")
       .def_prop_ro("joint_types", [](const Device& self) { return joint_type_names(self); },
@@ -1017,7 +1033,9 @@ NB_MODULE(_core, m) {
              double max_torque, int max_iterations, int max_iterations_initial,
              double secondary_weight, double range_margin_rad, double range_margin_m,
              const std::string& passivity, double passivity_max_energy_j,
-             double passivity_fade_j) {
+             double passivity_fade_j, double passivity_budget_j, double passivity_fade_time_s,
+             double passivity_resolution_rad, double passivity_resolution_m,
+             double velocity_margin_rad_s, double velocity_margin_m_s) {
             ControllerSettings s;
             if (!kp.is_none()) s.kp = to_vec6("kp", kp);
             if (!kv.is_none()) s.kv = to_vec6("kv", kv);
@@ -1040,6 +1058,12 @@ NB_MODULE(_core, m) {
             s.passivity = passivity_from(passivity);
             s.passivity_max_energy_j = passivity_max_energy_j;
             s.passivity_fade_j = passivity_fade_j;
+            s.passivity_budget_j = passivity_budget_j;
+            s.passivity_fade_time_s = passivity_fade_time_s;
+            s.passivity_resolution_rad = passivity_resolution_rad;
+            s.passivity_resolution_m = passivity_resolution_m;
+            s.velocity_margin_rad_s = velocity_margin_rad_s;
+            s.velocity_margin_m_s = velocity_margin_m_s;
             new (self) Controller(std::move(device), std::move(mechanism), s);
           },
           "device"_a, "mechanism"_a, nb::kw_only(), "kp"_a = nb::none(), "kv"_a = nb::none(),
@@ -1055,6 +1079,12 @@ NB_MODULE(_core, m) {
           "passivity"_a = "energy_tank",
           "passivity_max_energy_j"_a = ControllerSettings().passivity_max_energy_j,
           "passivity_fade_j"_a = ControllerSettings().passivity_fade_j,
+          "passivity_budget_j"_a = ControllerSettings().passivity_budget_j,
+          "passivity_fade_time_s"_a = ControllerSettings().passivity_fade_time_s,
+          "passivity_resolution_rad"_a = ControllerSettings().passivity_resolution_rad,
+          "passivity_resolution_m"_a = ControllerSettings().passivity_resolution_m,
+          "velocity_margin_rad_s"_a = ControllerSettings().velocity_margin_rad_s,
+          "velocity_margin_m_s"_a = ControllerSettings().velocity_margin_m_s,
           "Controller(device, mechanism, **settings). Gains and weights are 6-vectors "
           "[x y z rx ry rz]; unset ones take the defaults of docs/theory.md (derived from the "
           "device's actuation and the length scale). law: 'auto' | 'null_space' (eq. 11) | "

@@ -267,7 +267,7 @@ CONTROLLER = Field(
             "string", default=_C["error_velocity"], choices=("relative", "handle")
         ),
         "period_s": num(_C["period_s"], min=1e-5, max=0.1),
-        "ramp_time_s": num(_C["ramp_time_s"], min=0, max=10),
+        "ramp_time_s": num(_C["ramp_time_s"], min=0, min_exclusive=True, max=10),
         "max_force": num(0.0, min=0, max=1000),
         "max_iterations": Field("integer", default=_C["max_iterations"], min=1, max=1000),
         "passivity": Field(
@@ -288,7 +288,36 @@ CONTROLLER = Field(
             min=0,
             min_exclusive=True,
             max=1000,
-            doc="the range term fades out as the tank falls from 0 to minus this [J]",
+            doc="the range term fades out as the tank falls from minus passivity_budget_j "
+            "by this much [J]",
+        ),
+        "passivity_budget_j": num(
+            _C["passivity_budget_j"],
+            min=0,
+            max=1000,
+            doc="the most net work the motors may do beyond what the user put in before the "
+            "range term fades [J] (0: passive)",
+        ),
+        "passivity_fade_time_s": num(
+            _C["passivity_fade_time_s"],
+            min=0,
+            min_exclusive=True,
+            max=10,
+            doc="the range term's factor takes at least this long to go from 1 to 0 [s]",
+        ),
+        "passivity_resolution_rad": num(
+            _C["passivity_resolution_rad"],
+            min=0,
+            max=0.1,
+            doc="the joints' encoder resolution [rad]: the tank's observer ignores dither "
+            "within it",
+        ),
+        "velocity_margin_rad_s": num(
+            _C["velocity_margin_rad_s"],
+            min=0,
+            max=1000,
+            doc="dq may exceed the device's fastest plausible speed by this much before "
+            "the cycle faults [rad/s]",
         ),
     },
 )

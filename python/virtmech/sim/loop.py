@@ -192,6 +192,10 @@ def controller_kwargs(c: dict) -> dict:
             "passivity",
             "passivity_max_energy_j",
             "passivity_fade_j",
+            "passivity_budget_j",
+            "passivity_fade_time_s",
+            "passivity_resolution_rad",
+            "velocity_margin_rad_s",
         )
     }
     for k in ("kp", "kv", "w_a", "w_e", "w_e_star"):
