@@ -199,7 +199,7 @@ def test_outputs_are_complete_and_consistent(omni):
     np.testing.assert_allclose(
         out.error, vm.pose_error(out.mechanism_pose, out.handle_pose), atol=1e-15
     )
-    commanded = out.wrench_null + out.wrench_range
+    commanded = out.wrench_null + out.wrench_range + out.wrench_passivity
     applied = (commanded - out.wrench_unrendered) * out.limit_scale * out.ramp
     np.testing.assert_allclose(out.wrench, applied, atol=1e-12)
     np.testing.assert_allclose(out.torque, omni.jacobian(q).T @ out.wrench, atol=1e-12)
