@@ -35,8 +35,8 @@ def push(setup: Q.Setup, rest: Q.Run, force: float, push_s: float) -> dict:
     """A push of `force` [N] into the first constrained axis, ramped in over 0.2 s after 0.4 s
     at rest, held for push_s: the device's force against it (mean from 0.3 s after the ramp,
     least over the last 0.4 s) and the stiffness, force / deviation over the last 0.3 s (the
-    deviation counted from the surface under a resting tip above it, as `virtmech quality`
-    does)."""
+    deviation counted from the plane under a resting tip above it, as `virtmech quality`
+    does for a one-sided plane)."""
     axis = next(iter(setup.constrained_axes(rest).values()))
     hold, ramp = 0.4, 0.2
     raw = setup.raw_with(f"push-{force:g}",
@@ -47,9 +47,13 @@ def push(setup: Q.Setup, rest: Q.Run, force: float, push_s: float) -> dict:
     x = setup.point(r) @ axis
     t = r.t
     before = x[(t >= hold - 0.1) & (t < hold)].mean()
-    contact = setup.contact_point(rest)
-    if contact is not None:
-        before = max(before, float(contact @ axis))
+    # a tip resting above the plane (held there by the hand against the plane's pull) first
+    # crosses the gap: the wall deforms from the plane
+    surface = setup.contact_point(rest)
+    if surface is None and setup.mechanism["type"] == "Probe":
+        surface = np.asarray(setup.mechanism["plane_point"], dtype=float)
+    if surface is not None:
+        before = max(before, float(surface @ axis))
     deviation = x[t >= t[-1] - 0.3].mean() - before
     return {"mean": float(f[t >= hold + ramp + 0.3].mean()),
             "least": float(f[t >= t[-1] - 0.4].min()),
