@@ -163,6 +163,7 @@ def _run(scenarios: list, backend: str, workers: int | None, address: str | None
         backend=backend,
         address=address,
         capture=True,
+        isolate=True,
         preload=["virtmech.runner", "virtmech.sim.run_loop", "virtmech.sim.output"],
         on_done=lambda: bar.update(1),
     )
