@@ -189,6 +189,16 @@ def test_a_zero_normal_names_the_file_and_the_key(tmp_path, capsys):
     assert "non-zero" in err
 
 
+def test_a_direction_written_to_three_digits_runs(tmp_path, capsys):
+    # |[0.342, 0.940, 0]| = 1.00028: read as its unit vector, as docs/scenarios.md says
+    out = tmp_path / "o"
+    argv = ["run", "omni-contact", "--set", "mechanism.plane_normal=[0.342,0.940,0.0]"]
+    assert main([*argv, "--duration", "0.05", "--quiet", "--out", str(out)]) == 0
+    n = json.loads((out / "run.json").read_text())["scenario"]["mechanism"]["plane_normal"]
+    v = np.array([0.342, 0.940, 0.0])
+    np.testing.assert_allclose(n, v / np.linalg.norm(v), rtol=0, atol=1e-15)
+
+
 def test_a_value_the_constructors_reject_names_the_file_and_the_key(tmp_path, capsys):
     # a zero direction out of the plane passes the format's checks; PlanarArm rejects it
     bad = _scenario(tmp_path, "zero_direction = [1.0, 0.0, 0.0]", "zero_direction = [0, 0, 1]")
