@@ -21,7 +21,6 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -165,18 +164,10 @@ def _require_ray():
 
 
 def _bar(total: int, label: str, enabled: bool):
-    from tqdm import tqdm
+    from .progress import bar
 
-    return tqdm(
-        total=total,
-        desc=label,
-        unit="run",
-        file=sys.stderr,
-        ascii=" #",
-        ncols=80,
-        disable=not enabled,
-        mininterval=0.2 if sys.stderr.isatty() else 5.0,
-    )
+    return bar(total, label, "{n:.0f}/{total:.0f} runs", enabled, unit="run", ascii=" #",
+               ncols=80)
 
 
 def process_context(preload: Sequence[str]):

@@ -17,7 +17,7 @@ LABELS = [
     ("penetration_max_m", "max penetration [mm]", 1e3, "{:.3f}"),
     ("force_max_n", "max force [N]", 1.0, "{:.2f}"),
     ("force_rms_n", "RMS force [N]", 1.0, "{:.2f}"),
-    ("passive_torque_max", "max passive torque [N·m]", 1.0, "{:.3g}"),
+    ("passive_torque_max", "max torque on unpowered joints [N·m]", 1.0, "{:.3g}"),
     ("torque_fraction_max", "max torque / limit", 1.0, "{:.2f}"),
     ("energy_to_user_j", "energy to user [mJ]", 1e3, "{:.2f}"),
     ("real_time_factor", "× real time", 1.0, "{:.1f}"),
