@@ -147,8 +147,8 @@ def _require_pyarrow():
         import pyarrow as pa
     except ImportError:
         raise UserError(
-            "virtmech sweep: the table needs pyarrow, which is not installed; install it with: "
-            "pip install 'virtmech[parquet]' (or " + CLUSTER_HINT + ")"
+            "virtmech sweep: the table needs pyarrow, which is not installed; the [sim] extra "
+            "brings it: pip install 'virtmech[sim]' (or pip install pyarrow)"
         ) from None
     return pa
 

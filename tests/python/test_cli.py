@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import subprocess
 import sys
 import types
@@ -252,6 +253,27 @@ def test_without_the_sim_extra_says_how_to_install_it(argv, tmp_path):
     assert "mujoco" in p.stderr and "pip install 'virtmech[sim]'" in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "omni-fig9").exists()
+
+
+def test_the_sim_extra_brings_what_sweep_needs_and_the_readme_says_so(tmp_path):
+    from pathlib import Path
+
+    tomllib = pytest.importorskip("tomllib")
+    root = Path(__file__).resolve().parents[2]
+    extras = tomllib.loads((root / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"]
+    names = {re.split(r"[<>=;\[ ]", d)[0] for d in extras["sim"]}
+    assert {"mujoco", "matplotlib", "tqdm", "pyarrow"} <= names
+    assert {re.split(r"[<>=;\[ ]", d)[0] for d in extras["view"]} >= names  # view has [sim]
+    readme = (root / "README.md").read_text()
+    line = next(ln for ln in readme.splitlines() if ln.startswith('pip install ".[sim]"'))
+    assert all(n in line for n in ("MuJoCo", "matplotlib", "tqdm", "pyarrow")), line
+    # without pyarrow, sweep says that [sim] brings it: one line, exit status 2
+    p = _cli("sweep", "planar3r-fig9", "--grid", "human.damping=2,6", "--quiet",
+             "--out", str(tmp_path), code="sys.modules['pyarrow'] = None")
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert "pyarrow" in p.stderr and "pip install 'virtmech[sim]'" in p.stderr
 
 
 def test_a_zero_normal_names_the_file_and_the_key(tmp_path, capsys):
