@@ -171,6 +171,9 @@ def test_report_is_in_the_papers_figure_order_with_version_and_definitions(tmp_p
     # the gimbal's torque is named for what it is, not mistaken for passivity
     assert "<th>max torque on unpowered joints [N·m]</th>" in page
     assert "passive torque" not in page
+    entries[0]["metrics"]["energy_to_user_j"] = -1e-7  # -0.0001 mJ
+    page = write_index(tmp_path, entries).read_text()
+    assert "<td>-0.00</td>" not in page and "<td>0.00</td>" in page
 
 
 def test_summary_is_in_the_papers_figure_order(tmp_path):
