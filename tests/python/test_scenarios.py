@@ -225,7 +225,7 @@ def test_a_direction_along_an_axis_is_kept_exactly():
 
 def test_the_core_accepts_a_direction_the_format_normalised():
     pytest.importorskip("mujoco")
-    from virtmech.sim.loop import make_mechanism
+    from virtmech.builder import make_mechanism
 
     s = sc.loads(PROBE.replace("NORMAL", "[0.342, 0.940, 0.0]"))
     probe = make_mechanism(s["mechanism"])  # the core requires |n| within 1e-6 of 1

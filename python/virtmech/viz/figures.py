@@ -824,7 +824,7 @@ AXIS_NAMES = "xyz"
 def world_up(scenario) -> np.ndarray:
     """The unit vector up in the scenario's world: against gravity (the PHANTOM Omni's
     OpenHaptics frame: +y; other devices: +z)."""
-    from ..sim.loop import make_device
+    from ..builder import make_device
     from ..sim.model import world_gravity
 
     g = world_gravity(make_device(scenario.data["device"]))
