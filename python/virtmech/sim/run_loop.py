@@ -61,23 +61,22 @@ def check_stable(scenario, sim, t0: float, t1: float) -> None:
 
 
 class Progress:
-    """A progress bar on stderr (tqdm) in simulated seconds, then one line with the
-    scenario's simulated and wall time."""
+    """Progress on stderr in simulated seconds (virtmech.progress: a bar on a terminal,
+    whole lines elsewhere), then one line with the scenario's simulated and wall time."""
 
     def __init__(self, label: str, total: float, enabled: bool):
+        from ..progress import bar
+
         self.label, self.total, self.enabled = label, float(total), enabled
         self.bar = None
         self.wall0 = time.perf_counter()
         if enabled:
-            from tqdm import tqdm
-
-            self.bar = tqdm(
-                total=self.total,
-                desc=f"{label:<16}",
-                file=sys.stderr,
+            self.bar = bar(
+                self.total,
+                f"{label:<16}",
+                "{n:.2f}/{total:.2f} s",
                 ascii=" #",
                 ncols=80,
-                mininterval=0.2 if sys.stderr.isatty() else 5.0,
                 bar_format="{desc} [{bar}] {percentage:3.0f}%  {n:.2f}/{total:.2f} s",
             )
 
