@@ -7,6 +7,10 @@
  * vm_controller_diagnostics and their vm_mechanism_set_ counterparts never allocate and never
  * block. All units SI (m, rad, N, N·m, s); convert from device-native units (mm, mN·m) at the
  * boundary.
+ *
+ * Threads: a vm_controller or a vm_mechanism_set belongs to one thread at a time (its calls
+ * are not for concurrent use: one per servo thread); shapes (vm_nurbs_curve, ...) are
+ * immutable once created and may be used by controllers on any number of threads.
  */
 #ifndef VIRTMECH_H_
 #define VIRTMECH_H_

@@ -36,7 +36,9 @@ constexpr double kMaxSpeedPrismatic = 2.5;
 /// A haptic device (interface): joint count and kinds, which joints have motors, the
 /// limits the safety layer enforces, and the handle pose with its geometric Jacobian with
 /// respect to the device's own joint coordinates. A new device (a parallel one, a
-/// driver with its own conventions) is one subclass overriding forward_jacobian.
+/// driver with its own conventions) is one subclass overriding forward_jacobian. A device is
+/// immutable once built (every query is const and writes nothing): controllers on any
+/// number of threads may share one.
 class Device {
  public:
   virtual ~Device() = default;
