@@ -191,10 +191,10 @@ struct CycleOutput {
   std::uint32_t active = 0, active_star = 0;
   double ramp = 0.0;              //!< ramp-in factor applied [0, 1]
   double limit_scale = 1.0;       //!< factor applied by force and torque limits (0, 1]
-  /// Energy tank: its level, the energy the rendering has absorbed: at the start (and after
-  /// a fault) the springs' energy up to passivity_max_energy_j, minus the motors' work since
-  /// as the observer books it (one cycle late), held at most at the springs' energy plus
-  /// passivity_max_energy_j [J]; 0 with passivity off
+  /// Energy tank: its level, the energy the rendering has absorbed: at the start the
+  /// springs' energy up to passivity_max_energy_j (after a fault or a watchdog trip 0),
+  /// minus the motors' work since as the observer books it (two cycles late), held at most
+  /// at the springs' energy plus passivity_max_energy_j [J]; 0 with passivity off
   double energy = 0.0;
   /// What the law's springs hold [J]: Kp e at the nearest placement and, with eq. 26, the
   /// range term's P(W_A) Kp e* times the factor the tank applied to it the cycle before,
