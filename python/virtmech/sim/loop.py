@@ -29,7 +29,6 @@ import numpy as np
 
 import virtmech as vm
 
-from ..shapes import shape_from_dict
 from . import inner
 from .geometry import COLUMNS as DIST_COLUMNS
 from .geometry import distances, geometry_of
@@ -61,99 +60,17 @@ def _pose(position, rotation) -> np.ndarray:
     return T
 
 
-def _omni(d: dict):
-    omni = vm.PhantomOmni(
-        l1=d["l1"], l2=d["l2"], max_force=d["max_force"], motor_torque_limit=d["motor_torque_limit"]
-    )
-    if list(d["actuated"]) == [True, True, True, False, False, False]:
-        return omni
-    # the same Omni with other joints actuated (a fully actuated variant, to compare with):
-    # its chain, joint map and limits, and motors where asked
-    limits = list(d["motor_torque_limit"]) + [d["gimbal_torque_limit"]] * 3
-    return vm.Device(
-        omni.joints,
-        d["actuated"],
-        handle=omni.handle,
-        base=omni.base,
-        torque_limit=[t if a else 0.0 for t, a in zip(limits, d["actuated"])],
-        max_force=d["max_force"],
-        stiffness=omni.stiffness,
-        damping=omni.damping,
-        name="PhantomOmni",  # the Omni's physical model and frame conventions
-        coupling=omni.coupling,
-        coupling_offset=omni.coupling_offset,
-    )
-
-
-def _planar3r(d: dict):
-    return vm.Planar3R(
-        link1=d["link1"],
-        link2=d["link2"],
-        base=translation(d["base_position"]),
-        torque_limit=d["torque_limit"],
-        max_force=d["max_force"],
-    )
-
-
-def _serial_device(d: dict):
-    inf = float("inf")
-    joints = [
-        vm.Joint(
-            j["type"],
-            j["axis"],
-            _pose(j["origin"], j["origin_rotation"]),
-            j.get("lower", -inf),
-            j.get("upper", inf),
-        )
-        for j in d["joints"]
-    ]
-    return vm.Device(
-        joints,
-        d["actuated"],
-        handle=_pose(d["handle"], d["handle_rotation"]),
-        base=_pose(d["base_position"], d["base_rotation"]),
-        torque_limit=d["torque_limit"],
-        max_force=d.get("max_force", inf),
-    )
-
-
-#: a scenario's [device] type -> the device it describes
-DEVICES = {"PhantomOmni": _omni, "Planar3R": _planar3r, "Device": _serial_device}
-
-
 def make_device(d: dict):
-    """A vm device from a scenario's [device] table."""
-    return DEVICES[d["type"]](d)
+    """A vm device from a scenario's [device] table: its kind's parameters (virtmech.kinds;
+    the MuJoCo model's keys aside)."""
+    from ..scenarios.format import DEVICE_PHYSICS
+
+    return vm.make_device({k: v for k, v in d.items() if k not in DEVICE_PHYSICS})
 
 
 def make_mechanism(m: dict):
-    t = m["type"]
-    if t == "PlanarArm":
-        return vm.PlanarArm(m["pivot"], m["normal"], m["length"], m.get("zero_direction"))
-    if t == "PointPivot":
-        return vm.PointPivot(
-            m["point"], m["normal"], m["length"], m.get("tangent"), unilateral=m["unilateral"],
-            insertion=m.get("insertion", False),
-        )
-    if t == "Probe":
-        return vm.Probe(
-            m["plane_point"],
-            m["plane_normal"],
-            m["length"],
-            m.get("tangent"),
-            unilateral=m["unilateral"],
-        )
-    if t == "LineGuide":
-        return vm.LineGuide(
-            m["point"], m["direction"], m["length"], m.get("normal"), unilateral=m["unilateral"]
-        )
-    if t == "SurfaceProbe":
-        return vm.SurfaceProbe(shape_from_dict(m["surface"]), m["length"], m["unilateral"])
-    if t == "CurveGuide":
-        return vm.CurveGuide(shape_from_dict(m["curve"]), m["length"], m["normal"])
-    if t == "HandlePath":
-        return vm.HandlePath(shape_from_dict(m["curve"]), m["normal"], m["length_scale"])
-    raise ValueError(f"mechanism.type: unknown {t!r}")
+    """A vm mechanism from a scenario's [mechanism] table (its kind's parameters)."""
+    return vm.make_mechanism(m)
 
 
 def make_set(S: dict, device, ctrl):
@@ -163,15 +80,8 @@ def make_set(S: dict, device, ctrl):
     extra = st.get("members") or []
     if not extra:
         return ctrl
-    s = vm.MechanismSet(
-        device,
-        1 + len(extra),
-        snap_distance=st["snap_distance"],
-        release_distance=st["release_distance"],
-        force_rate=st["force_rate"],
-        moment_rate=st["moment_rate"],
-        period_s=S["controller"]["period_s"],
-    )
+    settings = {r["name"]: st[r["name"]] for r in vm.SET_SETTINGS if r["name"] in st}
+    s = vm.MechanismSet(device, 1 + len(extra), period_s=S["controller"]["period_s"], **settings)
     s.add(ctrl)
     kw = controller_kwargs(S["controller"])
     for mm in extra:
@@ -180,24 +90,9 @@ def make_set(S: dict, device, ctrl):
 
 
 def controller_kwargs(c: dict) -> dict:
-    kw = {
-        k: c[k]
-        for k in (
-            "law",
-            "error_velocity",
-            "period_s",
-            "ramp_time_s",
-            "max_force",
-            "max_iterations",
-            "passivity",
-            "passivity_max_energy_j",
-            "passivity_fade_j",
-        )
-    }
-    for k in ("kp", "kv", "w_a", "w_e", "w_e_star"):
-        if k in c:
-            kw[k] = np.asarray(c[k], dtype=float)
-    return kw
+    """The [controller] table as vm.Controller's keywords (every row of its settings table
+    the table holds)."""
+    return {r["name"]: c[r["name"]] for r in vm.CONTROLLER_SETTINGS if r["name"] in c}
 
 
 def device_physics(scenario_device: dict) -> DeviceModel:
@@ -437,81 +332,14 @@ class SimResult:
         return int(self.log.shape[0])
 
 
-def _names(prefix: str, n: int) -> list[str]:
-    return [f"{prefix}{i}" for i in range(n)]
-
-
 def log_columns(n: int, m: int) -> list[str]:
-    xyz = ["x", "y", "z"]
-    return (
-        ["t"]
-        + _names("q", n)
-        + _names("dq", n)
-        + _names("qm", n)
-        + _names("dqm", n)
-        + ["px", "py", "pz", "sx", "sy", "sz", "vx", "vy", "vz", "wx", "wy", "wz"]
-        + ["fx", "fy", "fz", "mx", "my", "mz"]
-        + _names("tau", n)
-        + _names("tau_motor", n)
-        + ["status", "ramp", "iterations", "iterations_star"]
-        + _names("theta", m)
-        + _names("theta_star", m)
-        + _names("e", 6)
-        + _names("e_dot", 6)
-        + _names("e_star", 6)
-        + _names("e_star_dot", 6)
-        + _names("f_null", 6)
-        + _names("f_range", 6)
-        + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz"]
-        + ["ax", "ay", "az", "segment", "member"]
-        + list(DIST_COLUMNS)
-        + ["arm_pos_angle", "arm_stylus_angle"]
-        + [f"ff1{c}" for c in xyz]
-        + [f"ff2{c}" for c in xyz]
-        + ["grip_twist"]
-    )
+    """The log's columns for a device of n joints and a mechanism of m (the table of
+    sim/include/virtmech/sim/log_table.hpp)."""
+    return inner.log_columns(n, m)
 
 
-UNITS = {
-    "t": "s",
-    "q": "rad",
-    "dq": "rad/s",
-    "qm": "rad (measured)",
-    "dqm": "rad/s (estimated)",
-    "px": "m",
-    "sx": "unit stylus direction",
-    "vx": "m/s",
-    "wx": "rad/s",
-    "fx": "N (device on handle)",
-    "mx": "N·m (device on handle)",
-    "tau": "N·m (controller command)",
-    "tau_motor": "N·m (motor output incl. gravity compensation, saturated)",
-    "status": "bits (virtmech.status)",
-    "ramp": "1",
-    "theta": "rad (nearest placement, W_e)",
-    "theta_star": "rad (un-powered placement, W_e*)",
-    "e": "m x3, rad x3",
-    "e_dot": "m/s, rad/s",
-    "e_star": "m, rad",
-    "e_star_dot": "m/s, rad/s",
-    "f_null": "N, N·m (eq. 26 null-space part)",
-    "f_range": "N, N·m (eq. 26 range-space part)",
-    "fhx": "N (hand on handle)",
-    "mhx": "N·m (hand on handle)",
-    "ax": "m (hand anchor)",
-    "segment": "intent segment index",
-    "member": "mechanism rendered: 0 the [mechanism], i the set's i-th (-1: none)",
-    "dist": "m (distance from where the mechanism allows; sim.geometry; a set's run: the "
-    "rendered member's, with none the nearest member's)",
-    "dist_signed": "m (signed distance from the mechanism's path or surface; sim.geometry)",
-    "dist_normal": "m (part along the mechanism's normal; sim.geometry)",
-    "dist_across": "m (the rest; sim.geometry)",
-    "arm_pos_angle": "rad (PlanarArm: angle of the handle position about the pivot)",
-    "arm_stylus_angle": "rad (PlanarArm: mechanism angle the stylus points for)",
-    "ff1x": "N (finger 1 on handle)",
-    "ff2x": "N (finger 2 on handle)",
-    "grip_twist": "N·m (moment about the stylus the grip adds)",
-}
+#: a column's unit by its name or prefix (the log's table)
+UNITS = inner.UNITS
 
 
 # ---------------------------------------------------------------------------------------
@@ -548,9 +376,11 @@ class _PostColumns:
     """Fills the columns that follow from the logged state alone (the distance from the
     path, the PlanarArm angles, the grip) in a block of rows."""
 
-    def __init__(self, columns: list[str], mechanisms: list[dict], planar, contacts):
+    def __init__(self, columns: list[str], mechanisms: list, planar, contacts):
         self.c = {name: i for i, name in enumerate(columns)}
-        self.mechanisms, self.planar, self.contacts = mechanisms, planar, contacts
+        # the mechanisms (or their to_dict()), made once
+        self.mechanisms = [vm.make_mechanism(m) if isinstance(m, dict) else m for m in mechanisms]
+        self.planar, self.contacts = planar, contacts
 
     def _distances(self, log: np.ndarray, p_h: np.ndarray, z_h: np.ndarray) -> np.ndarray:
         """The distance columns (rows x 4): the mechanism's; in a set's run the rendered
@@ -570,7 +400,7 @@ class _PostColumns:
         rows = np.arange(len(log))
         # the set's own distance (MechanismSet::distance): a unilateral member's tip height
         # above its surface (its dist, the depth, is 0 all the way up), others' dist
-        d = np.stack([np.maximum(each[i, :, 1], 0.0) if m.get("unilateral") else each[i, :, 0]
+        d = np.stack([np.maximum(each[i, :, 1], 0.0) if m.contact_joint >= 0 else each[i, :, 0]
                       for i, m in enumerate(self.mechanisms)])
         finite = np.isfinite(d)
         nearest = np.where(finite, d, np.inf).argmin(axis=0)
@@ -760,7 +590,10 @@ def run(
         hand_body=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "hand"),
         log_columns=columns,
     )
-    post = _PostColumns(columns, members or [mech.to_dict()], planar, contacts)
+    post = _PostColumns(
+        columns, [renderer.member(i) for i in range(renderer.size)] if members else [mech],
+        planar, contacts,
+    )
 
     # stretches of cycles: split where a segment starts (the hand's plan needs the handle's
     # pose there), every 1000 cycles (progress), at the ends of the blocks and
