@@ -28,19 +28,19 @@
 
 /* The controller's settings (virtmech::ControllerSettings, vm_settings). */
 #define VM_CONTROLLER_SETTINGS(VEC6, REAL, INT, ENUM)                                            \
-  VEC6(kp, "N/m x3; N m/rad x3",                                                                 \
-       "stiffness Kp; unset: the device's stiffness on the task axes it renders, 0 elsewhere")   \
-  VEC6(kv, "N s/m x3; N m s/rad x3",                                                             \
-       "damping Kv; unset: the device's damping on the task axes it renders, 0 elsewhere")       \
-  VEC6(w_a, "1 x3; m^2 x3",                                                                      \
+  VEC6(kp, "N/m x3; N·m/rad x3",                                                                 \
+       "stiffness; unset: the device's stiffness on the task axes it renders, 0 elsewhere")      \
+  VEC6(kv, "N·s/m x3; N·m·s/rad x3",                                                             \
+       "damping; unset: the device's damping on the task axes it renders, 0 elsewhere")          \
+  VEC6(w_a, "1 x3; m² x3",                                                                      \
        "filter weights W_A; unset: [1 1 1 L^2 L^2 L^2] on the task axes the device renders")     \
-  VEC6(w_e, "1 x3; m^2 x3",                                                                      \
+  VEC6(w_e, "1 x3; m² x3",                                                                      \
        "nearest-placement weights W_e; unset: as W_A")                                           \
-  VEC6(w_e_star, "1 x3; m^2 x3",                                                                 \
+  VEC6(w_e_star, "1 x3; m² x3",                                                                 \
        "un-powered placement weights W_e* (eq. 25); unset: the task axes the device does not "   \
        "render")                                                                                 \
   REAL(length_scale, 0.0, 0.0, 10.0, VM_RANGE_CLOSED, "m",                                       \
-       "L, weighing rotations against translations; 0 takes the mechanism's")                    \
+       "L; it weighs rotations against translations; 0 takes the mechanism's")                   \
   ENUM(law, ControlLaw, 0,                                                                       \
        "the control law: auto (eq. 26 on an under-actuated device, else eq. 11), null_space "    \
        "(eq. 11), under_actuated (eq. 26)")                                                      \
@@ -49,23 +49,29 @@
        "handle (eq. 10, -J_R dq)")                                                               \
   REAL(period_s, 1e-3, 0.0, 1.0, VM_RANGE_ABOVE_MIN, "s", "servo period")                        \
   REAL(ramp_time_s, 0.25, 0.0, 60.0, VM_RANGE_CLOSED, "s",                                       \
-       "force ramp-in after the start and after a fault")                                        \
+       "the force's ramp-in after the start, a fault or a watchdog trip")                        \
   REAL(watchdog_s, 0.0, 0.0, 60.0, VM_RANGE_CLOSED, "s",                                         \
-       "largest gap between timed cycles; 0: off")                                               \
-  REAL(max_force, 0.0, 0.0, VM_INF, VM_RANGE_CLOSED, "N", "force limit; 0 takes the device's")   \
-  REAL(max_torque, 0.0, 0.0, VM_INF, VM_RANGE_CLOSED, "N m",                                     \
-       "moment limit; 0 takes the device's")                                                     \
+       "the longest gap allowed between the time stamps t of step(q, dq, t); a longer gap, or "  \
+       "time running backwards, restarts the ramp-in and empties the energy tank (status "       \
+       "'watchdog'); 0: off")                                                                    \
+  REAL(max_force, 0.0, 0.0, VM_INF, VM_RANGE_CLOSED, "N",                                        \
+       "the limit on the force at the handle; 0 takes the device's")                             \
+  REAL(max_torque, 0.0, 0.0, VM_INF, VM_RANGE_CLOSED, "N·m",                                     \
+       "the limit on the moment at the handle; 0 takes the device's")                            \
   INT(max_iterations, 10, 1, 1000, "", "placement iterations per cycle")                         \
   INT(max_iterations_initial, 100, 1, 100000, "",                                                \
       "placement iterations on the first cycle (after a start, a reset or a fault)")             \
   REAL(secondary_weight, 1e-6, 0.0, 1.0, VM_RANGE_CLOSED, "",                                    \
-       "weight of [1 1 1 L^2 L^2 L^2] added to W_e and W_e*, so that directions a placement's "  \
-       "weights leave undetermined follow the full pose error instead of drifting")              \
+       "the weight of [1 1 1 L^2 L^2 L^2] added to W_e and W_e* (dimensionless), so that "       \
+       "directions their weights leave free are settled by the full pose error instead of "      \
+       "drifting")                                                                               \
   REAL(range_margin_rad, (5.0 * 3.14159265358979323846 / 180.0), 0.0, 3.14159265358979323846,   \
        VM_RANGE_CLOSED, "rad",                                                                   \
-       "how far q may leave a revolute joint's range before the cycle faults")                   \
+       "how far q may leave a revolute joint's range before the cycle faults "                   \
+       "(fault_out_of_range)")                                                                   \
   REAL(range_margin_m, 0.005, 0.0, 1.0, VM_RANGE_CLOSED, "m",                                    \
-       "how far q may leave a prismatic joint's range before the cycle faults")                  \
+       "how far q may leave a prismatic joint's range before the cycle faults "                  \
+       "(fault_out_of_range)")                                                                   \
   ENUM(passivity, Passivity, 1,                                                                  \
        "energy_tank: eq. 26's range term only as long as the user has put in the energy it "     \
        "gives; off: the laws as written (the paper's behaviour)")                                \
@@ -83,7 +89,7 @@
        "... and lets go beyond this one (at least snap_distance: the hysteresis)")               \
   REAL(force_rate, 100.0, 0.0, 1e6, VM_RANGE_ABOVE_MIN, "N/s",                                   \
        "largest change of the force while switching")                                            \
-  REAL(moment_rate, 1.0, 0.0, 1e6, VM_RANGE_ABOVE_MIN, "N m/s",                                  \
+  REAL(moment_rate, 1.0, 0.0, 1e6, VM_RANGE_ABOVE_MIN, "N·m/s",                                  \
        "largest change of the moment while switching")                                           \
   REAL(period_s, 1e-3, 0.0, 1.0, VM_RANGE_ABOVE_MIN, "s", "servo period, for the rates")
 

@@ -14,6 +14,16 @@ void expose_devices(nb::module_& m);      // devices
 void expose_controller(nb::module_& m);   // Controller, MechanismSet and their outputs
 void expose_registry(nb::module_& m);     // kinds, describe, distances, plugins
 
+/// A constructor's signature and docstring taking a settings table's rows as keywords
+/// (`head`: the parameters before them; `intro`: the first paragraph), kept for the module's
+/// life.
+struct SettingsDoc {
+  const char* signature;
+  const char* doc;
+};
+SettingsDoc settings_doc(const std::vector<SettingInfo>& infos, const std::string& head,
+                         const std::string& intro);
+
 /// Binds the constructor and the parameter properties of a registered kind's class: its
 /// parameters in the kind's order (positional or keywords), made by the kind's factory.
 template <class T, class Cls, class Make>

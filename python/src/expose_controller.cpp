@@ -68,26 +68,38 @@ void expose_controller(nb::module_& m) {
       .VM_VECTOR(CycleOutput, theta, "Nearest placement (m,) (W_e).")
       .VM_VECTOR(CycleOutput, theta_star, "Un-powered placement (m,) (W_e*).")
       .VM_VECTOR(CycleOutput, error, "e = X_V - X_R (6,) [m; rad].")
-      .VM_VECTOR(CycleOutput, error_dot, "e_dot (6,) [m/s; rad/s].")
-      .VM_VECTOR(CycleOutput, error_star, "e* (6,) [m; rad].")
-      .VM_VECTOR(CycleOutput, error_star_dot, "e*_dot (6,) [m/s; rad/s].")
-      .VM_POSE(CycleOutput, handle_pose, "The device's handle pose (4, 4).")
-      .VM_POSE(CycleOutput, mechanism_pose, "The nearest placement's pose (4, 4).")
-      .VM_POSE(CycleOutput, mechanism_pose_star, "The un-powered placement's pose (4, 4).")
+      .VM_VECTOR(CycleOutput, error_dot,
+                 "The rate of e (6,) [m/s; rad/s] (error_velocity: 'relative' or 'handle').")
+      .VM_VECTOR(CycleOutput, error_star,
+                 "e* = X_V* - X_R at the un-powered placement theta_star (6,) [m; rad] (eq. 25).")
+      .VM_VECTOR(CycleOutput, error_star_dot, "The rate of e* (6,) [m/s; rad/s].")
+      .VM_POSE(CycleOutput, handle_pose,
+               "The device's handle pose X_R (4, 4) [m]: origin at the grip point, +z along the "
+               "stylus toward the tip.")
+      .VM_POSE(CycleOutput, mechanism_pose, "The mechanism's handle pose X_V at theta (4, 4) [m].")
+      .VM_POSE(CycleOutput, mechanism_pose_star,
+               "The mechanism's handle pose X_V* at theta_star (4, 4) [m].")
       .def_prop_ro("active", [](const CycleOutput& o) { return joint_mask(o.active, o.theta.size()); },
                    "Joints of the nearest placement held at a limit that acts (m,) of bool: "
                    "locked for the filters (a one-sided limit renders contact).")
       .def_prop_ro("active_star", [](const CycleOutput& o) { return joint_mask(o.active_star, o.theta_star.size()); },
                    "Joints of the un-powered placement held at a limit that acts (m,).")
-      .def_ro("iterations", &CycleOutput::iterations)
-      .def_ro("iterations_star", &CycleOutput::iterations_star)
-      .def_ro("residual", &CycleOutput::residual)
-      .def_ro("residual_star", &CycleOutput::residual_star)
+      .def_ro("iterations", &CycleOutput::iterations,
+              "Gauss-Newton iterations of this cycle's nearest placement (0: its closed form).")
+      .def_ro("iterations_star", &CycleOutput::iterations_star,
+              "Gauss-Newton iterations of this cycle's un-powered placement.")
+      .def_ro("residual", &CycleOutput::residual,
+              "The nearest placement's weighted error sqrt(e^T W_e e) [m] (rotations weighted by "
+              "the length scale squared): 0 when the handle is on the mechanism.")
+      .def_ro("residual_star", &CycleOutput::residual_star,
+              "The un-powered placement's, sqrt(e*^T W_e* e*) [m]; 0 without eq. 26's range term.")
       .def_ro("ramp", &CycleOutput::ramp, "Ramp-in factor applied, in [0, 1].")
       .def_ro("limit_scale", &CycleOutput::limit_scale, "Factor applied by the force/torque limits.")
       .def_ro("energy", &CycleOutput::energy,
-              "Energy tank: the energy it may give this cycle [J] (absorbed, capped, less what "
-              "the null-space spring stores; 0 with passivity off).")
+              "The energy tank's level [J]: the energy the rendering has absorbed (0 at the start, "
+              "less the motors' work since), at most stored_energy + passivity_max_energy_j; "
+              "below 0 a deficit, which fades the range term out (docs/theory.md, 8). 0 with "
+              "passivity off.")
       .def_ro("stored_energy", &CycleOutput::stored_energy,
               "What the law's springs hold [J] (the energy tank subtracts it).")
       .def_ro("passivity_scale", &CycleOutput::passivity_scale,
@@ -95,20 +107,26 @@ void expose_controller(nb::module_& m) {
       .def_ro("status", &CycleOutput::status, "Status bits (virtmech.status).")
       .def_ro("computation_time_us", &CycleOutput::computation_time_us,
               "This cycle's own computation time [µs] (the time-stamp counter where invariant).")
-      .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); })
-      .def_prop_ro("fault", [](const CycleOutput& o) { return (o.status & status::kFaultMask) != 0; });
+      .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); },
+                   "The names of the status bits set, e.g. ['ramping'] while the force ramps in.")
+      .def_prop_ro("fault", [](const CycleOutput& o) { return (o.status & status::kFaultMask) != 0; },
+                   "True when a fault bit is set (status & 0xFF00): the torque is zero.");
 
+  const SettingsDoc cdoc = settings_doc(
+      controller_setting_infos(),
+      "self, device: DeviceBase, mechanism: Mechanism, settings: ControllerSettings | None = None",
+      "Controller(device, mechanism, settings=None, **settings): validated and allocated here, "
+      "once; then step() once per servo cycle. Its settings: a ControllerSettings and/or its "
+      "properties as keywords (CONTROLLER_SETTINGS: defaults and ranges). Gains and weights "
+      "are 6-vectors [x y z rx ry rz]; unset ones take the defaults of docs/theory.md "
+      "(derived from the device's actuation and the length scale L).");
   nb::class_<Controller>(m, "Controller", "The virtual-mechanism controller: one step() per servo cycle.")
       .def("__init__", [](Controller* self, std::shared_ptr<Device> device,
                           std::shared_ptr<Mechanism> mechanism, nb::handle settings, nb::kwargs kw) {
             new (self) Controller(std::move(device), std::move(mechanism),
                                   settings_from<ControllerSettings>(settings, kw, "Controller"));
           }, "device"_a, "mechanism"_a, "settings"_a = nb::none(), "kwargs"_a,
-          "Controller(device, mechanism, settings=None, **settings): a ControllerSettings and/or "
-          "its properties as keywords (CONTROLLER_SETTINGS: units, defaults, ranges). Gains and "
-          "weights are 6-vectors [x y z rx ry rz]; unset ones take the defaults of "
-          "docs/theory.md. law: 'auto' | 'null_space' (eq. 11) | 'under_actuated' (eq. 26); "
-          "passivity: 'energy_tank' (default) | 'off'.")
+          nb::sig(cdoc.signature), cdoc.doc)
       .def("step", [](Controller& self, nb::handle q, nb::handle dq, double t, nb::handle out,
                       nb::handle torque) {
             const int n = self.device().dof();
@@ -149,11 +167,20 @@ void expose_controller(nb::module_& m) {
             return c;
           },
                    "Per member: unilateral and in contact.")
-      .def_prop_ro("torque", [](const MechanismSetOutput& o) { return Eigen::VectorXd(o.cycle.torque); })
-      .def_prop_ro("wrench", [](const MechanismSetOutput& o) { return o.cycle.wrench; })
-      .def_prop_ro("status", [](const MechanismSetOutput& o) { return o.cycle.status; })
-      .def_prop_ro("status_names", [](const MechanismSetOutput& o) { return status_names(o.cycle.status); });
+      .def_prop_ro("torque", [](const MechanismSetOutput& o) { return Eigen::VectorXd(o.cycle.torque); },
+                   "The set's joint torques (n,) [N·m or N] (cycle.torque).")
+      .def_prop_ro("wrench", [](const MechanismSetOutput& o) { return o.cycle.wrench; },
+                   "The set's wrench at the handle (6,) [N; N·m] (cycle.wrench).")
+      .def_prop_ro("status", [](const MechanismSetOutput& o) { return o.cycle.status; },
+                   "Status bits of the rendered member's cycle (virtmech.status).")
+      .def_prop_ro("status_names", [](const MechanismSetOutput& o) { return status_names(o.cycle.status); },
+                   "The names of the status bits set (virtmech.status).");
 
+  const SettingsDoc sdoc = settings_doc(
+      set_setting_infos(),
+      "self, device: DeviceBase, capacity: int = 4, settings: MechanismSetSettings | None = None",
+      "MechanismSet(device, capacity=4, settings=None, **settings): a MechanismSetSettings "
+      "and/or its properties as keywords (SET_SETTINGS: defaults and ranges).");
   nb::class_<MechanismSet>(
       m, "MechanismSet",
       "Several mechanisms on one device, at most one rendered per cycle: a member engages within "
@@ -165,8 +192,7 @@ void expose_controller(nb::module_& m) {
             new (self) MechanismSet(std::move(device), capacity,
                                     settings_from<MechanismSetSettings>(settings, kw, "MechanismSet"));
           }, "device"_a, "capacity"_a = 4, "settings"_a = nb::none(), "kwargs"_a,
-          "MechanismSet(device, capacity=4, settings=None, **settings): a MechanismSetSettings "
-          "and/or its properties as keywords (SET_SETTINGS).")
+          nb::sig(sdoc.signature), sdoc.doc)
       .def("add", [](MechanismSet& self, const Controller& member) { return self.add(member); },
            "member"_a,
            "Adds a member: a copy of a Controller of the set's device and the member's mechanism "

@@ -44,6 +44,18 @@ void expose_math(nb::module_& m) {
         "diagonal or a (6, 6) symmetric positive semi-definite matrix.");
   m.def("null_filter", filter(false), "J"_a, "W"_a, "Null-space filter N(W) = I - P(W) (eq. 9).");
 
+  m.def("reach", [](const Device& device, nb::handle target, nb::handle seeds, double length_scale,
+                    int max_iterations) {
+        std::vector<JointVector> s;
+        for (nb::handle h : seeds) s.push_back(joints_arg("seeds", h, device.dof()));
+        const DevicePose r = reach(device, pose_arg("target", target), s, length_scale, max_iterations);
+        return nb::make_tuple(Eigen::VectorXd(r.q), r.error, r.seed);
+      }, "device"_a, "target"_a, "seeds"_a, "length_scale"_a = 0.1, "max_iterations"_a = 200,
+      "The device's joint values (dof,) within its limits whose handle pose is nearest the "
+      "target (4, 4), weighted [1 1 1 L^2 L^2 L^2]: Levenberg-Marquardt on the device's "
+      "kinematics from each seed (dof,) in turn, the first that reaches it kept, else the "
+      "nearest. Returns (q, pose_error(target, forward(q)) (6,), the seed's index).");
+
   nb::class_<PlacementResult>(m, "TrackResult", "Result of track().")
       .def_prop_ro("theta", [](const PlacementResult& r) { return Eigen::VectorXd(r.theta); },
                    "Mechanism joint values (dof,).")

@@ -4,9 +4,13 @@
 // documentation.
 #include <nanobind/stl/optional.h>
 
+#include <sstream>
+
 #include "expose.hpp"
 
 namespace vmpy {
+
+const char* keep(std::string text);
 
 namespace {
 
@@ -36,11 +40,9 @@ T number_arg(const char* name, nb::handle v) {
   return nb::cast<T>(v);
 }
 
-// "doc [unit]", kept for the life of the module
+// "doc [unit]"
 const char* with_unit(const char* doc, const char* unit) {
-  static std::vector<std::unique_ptr<std::string>> kept;
-  kept.push_back(std::make_unique<std::string>(std::string(doc) + (*unit ? std::string(" [") + unit + "]" : "")));
-  return kept.back()->c_str();
+  return keep(std::string(doc) + (*unit ? std::string(" [") + unit + "]" : ""));
 }
 
 nb::list infos_to_python(const std::vector<SettingInfo>& infos) {
@@ -73,6 +75,49 @@ nb::list infos_to_python(const std::vector<SettingInfo>& infos) {
 }
 
 }  // namespace
+
+const char* keep(std::string text) {
+  static std::vector<std::unique_ptr<std::string>> kept;  // for the life of the module
+  kept.push_back(std::make_unique<std::string>(std::move(text)));
+  return kept.back()->c_str();
+}
+
+SettingsDoc settings_doc(const std::vector<SettingInfo>& infos, const std::string& head,
+                         const std::string& intro) {
+  std::ostringstream sig, doc, units;
+  sig.precision(15);
+  sig << "def __init__(" << head << ", *";
+  doc << intro << "\n";
+  units << "Units:";
+  for (const SettingInfo& s : infos) {
+    sig << ", " << s.name << ": ";
+    if (s.kind == SettingKind::kVector6) {
+      sig << "collections.abc.Sequence[float] | None = None";
+    } else if (s.kind == SettingKind::kChoice) {
+      for (const EnumName& c : s.choices)
+        if (c.value == static_cast<int>(s.default_value)) sig << "str = '" << c.name << "'";
+    } else {
+      sig << (s.kind == SettingKind::kInteger ? "int = " : "float = ") << s.default_value;
+    }
+    // "name: doc [unit]; the rest": the unit after the doc's first clause
+    std::string line = std::string(s.doc);
+    if (*s.unit) {
+      const size_t semi = line.find(';');
+      const std::string u = std::string(" [") + s.unit + "]";
+      line = semi == std::string::npos ? line + u : line.substr(0, semi) + u + line.substr(semi);
+      units << (units.tellp() > 6 ? ", " : " ") << s.name << " [" << s.unit << "]";
+    }
+    if (s.kind == SettingKind::kChoice) {
+      line += " (";
+      for (size_t i = 0; i < s.choices.size(); ++i) line += (i ? " | '" : "'") + std::string(s.choices[i].name) + "'";
+      line += ")";
+    }
+    doc << "\n" << s.name << ": " << line << ".";
+  }
+  sig << ") -> None";
+  units << ".";
+  return {keep(sig.str()), keep(doc.str() + "\n\n" + units.str())};
+}
 
 void expose_settings(nb::module_& m) {
   def_enum<ControlLaw>(m, "ControlLaw", "Which control law the cycle evaluates.");

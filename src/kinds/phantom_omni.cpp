@@ -56,17 +56,17 @@ void add_phantom_omni(Registry& r) {
       number_param("l1", d.l1, 0.01, 1.0, "m", "upper arm"),
       number_param("l2", d.l2, 0.01, 1.0, "m", "forearm"),
       number_param("max_force", d.max_force, 0.0, 100.0, "N", "peak force at the handle", true),
-      array_param("motor_torque_limit", {3}, triple(d.motor_torque_limit), "N m",
+      array_param("motor_torque_limit", {3}, triple(d.motor_torque_limit), "N·m",
                   "the three motors' torque limits"),
       array_param("gimbal_offset", {3}, triple(d.gimbal_offset), "rad",
                   "driver gimbal angles g map to virtmech's as sign (g - offset)"),
       array_param("gimbal_sign", {3}, triple(d.gimbal_sign), "", "+1 or -1 per gimbal joint"),
       number_param("stiffness", d.stiffness, 0.0, 1e6, "N/m", "default translational Kp"),
-      number_param("damping", d.damping, 0.0, 1e4, "N s/m", "default translational Kv"),
+      number_param("damping", d.damping, 0.0, 1e4, "N·s/m", "default translational Kv"),
       bools_param("actuated", 6, kOmniActuation,
                   "6 true or false: which joints have a motor (a fully actuated variant: all "
                   "true)"),
-      number_param("gimbal_torque_limit", 0.1, 0.0, 10.0, "N m",
+      number_param("gimbal_torque_limit", 0.1, 0.0, 10.0, "N·m",
                    "torque limit of a gimbal joint made actuated", true)};
   k.type = typeid(PhantomOmni);
   k.make = make_omni;

@@ -10,7 +10,7 @@ void add_planar3r(Registry& r) {
           "joint un-powered; the handle origin on it, the stylus along angle q0 + q1 + q2.";
   k.params = {number_param("link1", Planar3RDefaults::kLink, 0.01, 2.0, "m", "first link"),
               number_param("link2", Planar3RDefaults::kLink, 0.01, 2.0, "m", "second link"),
-              number_param("torque_limit", Planar3RDefaults::kTorqueLimit, 0.0, 1000.0, "N m",
+              number_param("torque_limit", Planar3RDefaults::kTorqueLimit, 0.0, 1000.0, "N·m",
                            "the actuated joints' torque limit", true),
               number_param("max_force", Planar3RDefaults::kMaxForce, 0.0, 1000.0, "N",
                            "force limit", true),

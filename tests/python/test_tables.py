@@ -80,7 +80,7 @@ def test_every_controller_setting_is_a_scenario_key_with_the_structs_default():
     ],
 )
 def test_a_setting_written_in_a_scenario_reaches_the_controller(key, value, check):
-    from virtmech.sim.loop import controller_kwargs, make_device, make_mechanism
+    from virtmech.builder import controller_kwargs, make_device, make_mechanism
 
     s = sc.loads(SCENARIO).with_keys({f"controller.{key}": value})
     dev = make_device(s["device"])
@@ -177,7 +177,7 @@ def test_the_set_settings_come_from_their_table():
 def test_the_log_columns_and_units_come_from_one_table():
     pytest.importorskip("mujoco")
     from virtmech.sim import geometry, inner
-    from virtmech.sim.loop import UNITS, log_columns
+    from virtmech.sim.log import UNITS, log_columns
 
     table = inner._log_table()
     for n, m in ((1, 1), (3, 4), (6, 6)):

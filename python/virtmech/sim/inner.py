@@ -130,9 +130,9 @@ class ServoLoop:
         s.comp_bodies = [int(b) for b in kw["comp_bodies"]]
         s.comp_masses = [float(m) for m in kw["comp_masses"]]
         s.gravity = np.asarray(kw["gravity"], dtype=float)
-        s.quantum = float(kw["sensors"].step)
-        s.delay_cycles = int(kw["sensors"].s.delay_cycles)
-        s.velocity_alpha = float(kw["sensors"].alpha)
+        s.quantum = float(kw["sensors"].quantum_rad)
+        s.delay_cycles = int(kw["sensors"].delay_cycles)
+        s.velocity_alpha = float(kw["sensors"].velocity_alpha(s.period_s))
         s.hand_body = int(kw.get("hand_body", -1))
         self._loop = _sim.ServoLoop(
             controller, model._address, data._address, s,
