@@ -51,13 +51,14 @@ __all__ = [
 
 
 def built(scenario, table: str, make: Callable[[], Any]) -> Any:
-    """make(), a constructor's ValueError (its message starts with the parameter's name)
-    reported as a ScenarioError naming the scenario's file and key."""
+    """make(), a constructor's ValueError or TypeError (its message starts with the
+    parameter's name: a value out of range, an array of the wrong shape) reported as a
+    ScenarioError naming the scenario's file and key."""
     from .scenarios import ScenarioError
 
     try:
         return make()
-    except ValueError as e:
+    except (ValueError, TypeError) as e:
         msg = str(e)
         head, sep, rest = msg.partition(": ")
         head = head.strip()

@@ -191,9 +191,23 @@ HUMAN = Field(
 )
 
 _MODE = ("passive", "hold")
+#: the largest force and moment component an intent may apply: a hand pushing on a held
+#: stylus or handle, beyond every device's peak force (a few to 20 N) by far, so that a
+#: mistyped unit (1e6) is a named mistake rather than a diverging simulation
+MAX_INTENT_FORCE_N = 100.0
+MAX_INTENT_MOMENT_NM = 10.0
+
+
+def _bounded_vec(limit: float, unit: str, required: bool = False) -> Field:
+    return Field(
+        "vector", length=3, required=required, min=-limit, max=limit,
+        doc=f"3 numbers [{unit}], each within ±{limit:g}",
+    )
+
+
 _PUSH = {
-    "force": opt_vec(3, "3 numbers [N]"),
-    "moment": opt_vec(3, "3 numbers [N m]"),
+    "force": _bounded_vec(MAX_INTENT_FORCE_N, "N"),
+    "moment": _bounded_vec(MAX_INTENT_MOMENT_NM, "N m"),
     "force_frame": Field(
         "string", default="world", choices=("world", "handle"),
         doc="the axes of force and moment",
@@ -247,7 +261,7 @@ INTENT = Field(
             "angle_deg": num(required=True, min=-720, max=720, doc="a number [deg]"),
             "axis": _AXIS,
         },
-        "push": {**_COMMON, "force": vec(3, required=True, doc="3 numbers [N]")},
+        "push": {**_COMMON, "force": _bounded_vec(MAX_INTENT_FORCE_N, "N", required=True)},
         "sine": {
             **_OSCILLATION,
             "frequency_hz": num(required=True, min_exclusive=True, doc="a number [Hz] > 0",
