@@ -30,6 +30,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "virtmech/velocity_filter.hpp"
 #include "virtmech/virtmech.hpp"
 
 namespace virtmech::sim {
@@ -73,7 +74,7 @@ struct LoopSettings {
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  //!< for the compensation [m/s^2]
   double quantum = 0.0;             //!< encoder step [rad]; 0: none
   int delay_cycles = 0;             //!< sensor delay [cycles]
-  double velocity_alpha = 1.0;      //!< velocity low-pass: dqf += alpha (diff - dqf)
+  double velocity_alpha = 1.0;      //!< the VelocityFilter's gain, in (0, 1]
   int hand_body = -1;  //!< the hand's body (mass zeroed while released); -1: none
 };
 
@@ -134,8 +135,9 @@ class ServoLoop {
   JointMatrix Cinv_, CinvT_, CT_;
   JointVector c0_;
   std::vector<double> jacp_, ring_;
-  JointVector gs_, tau_g_, held_, prev_, dqf_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_,
-      received_, sv_, hand_tau_;
+  JointVector gs_, tau_g_, held_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_, received_, sv_,
+      hand_tau_;
+  VelocityFilter velocity_;  // the estimate from the received positions (dqm)
   long reads_ = 0;
   double control_time_s_ = 0.0;
   bool attached_ = true;
