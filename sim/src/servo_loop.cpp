@@ -51,16 +51,31 @@ TimerOff::~TimerOff() {
 
 ServoLoop::ServoLoop(Controller& controller, mjModel* model, mjData* data,
                      LoopSettings settings, const PlanLayout& plan, const LogLayout& log)
-    : ctrl_(&controller), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+    : ctrl_(&controller),
+      device_(&controller.device()),
+      m_(model),
+      d_(data),
+      s_(std::move(settings)),
+      plan_(plan),
+      log_(log) {
   mdof_ = controller.mechanism().dof();
   init();
 }
 
 ServoLoop::ServoLoop(MechanismSet& set, mjModel* model, mjData* data, LoopSettings settings,
                      const PlanLayout& plan, const LogLayout& log)
-    : set_(&set), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+    : set_(&set), device_(&set.device()), m_(model), d_(data), s_(std::move(settings)),
+      plan_(plan), log_(log) {
   require(set.size() > 0, "set: expected a mechanism set with at least one member");
   for (int i = 0; i < set.size(); ++i) mdof_ = std::max(mdof_, set.member(i).mechanism().dof());
+  init();
+}
+
+ServoLoop::ServoLoop(const Device& device, ExternalController& controller, mjModel* model,
+                     mjData* data, LoopSettings settings, const PlanLayout& plan,
+                     const LogLayout& log)
+    : external_(&controller), device_(&device), m_(model), d_(data), s_(std::move(settings)),
+      plan_(plan), log_(log) {
   init();
 }
 
@@ -277,12 +292,15 @@ void ServoLoop::control(double t, const double* noise, bool dropout) {
   const auto t0 = std::chrono::steady_clock::now();
   if (ctrl_) {
     ctrl_->step(received_.data(), velocity_.velocity().data(), out_, t);
-  } else {
+  } else if (set_) {
     set_->step(received_.data(), velocity_.velocity().data(), set_out_, t);
+  } else {
+    out_.torque.setZero(n_);
+    external_->control(t, received_.data(), velocity_.velocity().data(), out_.torque.data());
   }
   control_time_s_ +=
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!ctrl_) out_ = set_out_.cycle;
+  if (set_) out_ = set_out_.cycle;
   cmd_ = out_.torque;
   if (!s_.comp_bodies.empty()) {
     // gravity through the motors: -C^T sum_b J_com,b^T m_b g (kinematics from mj_step1)

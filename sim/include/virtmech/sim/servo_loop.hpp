@@ -78,6 +78,17 @@ struct LoopSettings {
   int hand_body = -1;  //!< the hand's body (mass zeroed while released); -1: none
 };
 
+/// A controller outside the loop, called in the controller's place once per control cycle:
+/// a stand-in vendor library serving the simulated device to a real driver (tests/standin).
+/// It gets the measured joints (quantised, delayed: what the device's encoders give) and
+/// their velocity estimate, and writes the joint torques (the device's joints; the loop
+/// applies the actuated joints', with the gravity compensation).
+class ExternalController {
+ public:
+  virtual ~ExternalController() = default;
+  virtual void control(double t_s, const double* qm, const double* dqm, double* torque) = 0;
+};
+
 /// The loop. Holds the controller, model and data by reference: they must outlive it. The
 /// model is changed only where the hand lets go or takes hold again (the hand body's
 /// body_mass, body_inertia and the constants mj_setConst computes); the loop restores the
@@ -92,6 +103,10 @@ class ServoLoop {
   /// columns as wide as the largest member's joints).
   ServoLoop(MechanismSet& set, mjModel* model, mjData* data, LoopSettings settings,
             const PlanLayout& plan, const LogLayout& log);
+  /// The same loop with an external controller on `device` (both must outlive the loop); the
+  /// log's controller columns (wrench, theta, e, ...) stay zero.
+  ServoLoop(const Device& device, ExternalController& controller, mjModel* model, mjData* data,
+            LoopSettings settings, const PlanLayout& plan, const LogLayout& log);
   ~ServoLoop();
   ServoLoop(const ServoLoop&) = delete;
   ServoLoop& operator=(const ServoLoop&) = delete;
@@ -112,7 +127,7 @@ class ServoLoop {
 
  private:
   void init();
-  const Device& device() const noexcept { return ctrl_ ? ctrl_->device() : set_->device(); }
+  const Device& device() const noexcept { return *device_; }
   void read_state();
   void sense(const double* noise, bool dropout);
   void control(double t, const double* noise, bool dropout);
@@ -123,8 +138,10 @@ class ServoLoop {
   void write_row(double t, const Pose& T_h, const Vector6& tw0, const Vector6& wrench0,
                  const double* plan, double* row) const;
 
-  Controller* ctrl_ = nullptr;  // one of the two
+  Controller* ctrl_ = nullptr;  // one of the three
   MechanismSet* set_ = nullptr;
+  ExternalController* external_ = nullptr;
+  const Device* device_ = nullptr;
   MechanismSetOutput set_out_;
   mjModel* m_;
   mjData* d_;
