@@ -27,7 +27,7 @@ cmake --build build/consumer -j "$jobs" >/dev/null
 build/consumer/consumer
 
 echo "== examples"
-build/cpp/examples/01_omni_loop_c | tail -n 3
+build/cpp/examples/01_omni_loop_c build/cpp/tests/standin/libHD.so | tail -n 3  # an HD program, on the stand-in
 build/cpp/examples/01_omni_loop_cpp | tail -n 3
 build/cpp/examples/02_custom_mechanism_cpp | tail -n 3
 build/cpp/examples/surface_probe_c | tail -n 3

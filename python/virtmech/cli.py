@@ -14,9 +14,13 @@ virtmech schema                       the JSON Schema of the scenario format
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
 virtmech view [SCENARIO | LOG_DIR]    a live 3-D viewer in the browser, the mouse as the hand;
              [--port P] [--open]      or a run's log played back (docs/viewer.md)
+virtmech drive SCENARIO --device openhaptics   the scenario's mechanism on a real device
+             [--library PATH] [--device-name NAME] [--duration S] [--out DIR]
+             [--format csv|parquet] [--watchdog-ms MS] [--figures] [--quiet]
+                                      (docs/devices.md, "Running on a real Touch")
 
 A mistake in the input (a scenario, a flag, a path; virtmech.errors.UserError) is reported
-as one message on stderr, with exit status 2.
+as one message on stderr, with exit status 2; a device fault (drive) with exit status 1.
 """
 
 from __future__ import annotations
@@ -377,6 +381,46 @@ def cmd_view(args) -> int:
     )
 
 
+def cmd_drive(args) -> int:
+    from . import drive
+    from . import scenarios as sc
+
+    try:
+        scenario, note = drive.load(args.scenario)
+    except sc.ScenarioError as e:
+        raise UserError(*e.messages) from None
+    _require_format(args.format)
+    out = _out_dir(args.out or Path("out") / f"{scenario.name}-drive")
+    if note and not args.quiet:
+        print(f"virtmech drive: note: {note}", file=sys.stderr)
+    try:
+        r = drive.run(
+            scenario,
+            device=args.device,
+            library=args.library,
+            device_name=args.device_name,
+            duration_s=args.duration,
+            out=out,
+            fmt=args.format,
+            watchdog_ms=args.watchdog_ms,
+            figures=args.figures,
+            quiet=args.quiet,
+        )
+    except drive.DeviceFault as e:
+        print(f"virtmech drive: {e}", file=sys.stderr)
+        return 1
+    st, dev = r.stats, r.info
+    if st:
+        print(
+            f"{scenario.name}: drove {dev.get('model') or 'the device'} for "
+            f"{st['elapsed_s']:.2f} s: {st['ticks']} ticks at {st['rate_hz']:.1f} Hz, "
+            f"{st['late']} late, worst tick {st['worst_tick_us']:.0f} us; wrote "
+            f"{out}/{', '.join(r.files)}"
+        )
+    print(f"virtmech drive: {r.message}", file=sys.stderr if r.exit_code else sys.stdout)
+    return r.exit_code
+
+
 def cmd_bench(argv: list[str]) -> int:
     from . import bench  # imported only when asked for
 
@@ -547,6 +591,41 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument(
         "--seed", type=_seed, help="random seed of the sensor noise (default: the scenario's)"
     )
+    dr = sub.add_parser(
+        "drive", help="render a scenario's mechanism on a real haptic device (docs/devices.md)"
+    )
+    dr.add_argument(
+        "scenario",
+        help="SCENARIO.toml or a shipped name: its [device], [mechanism] (or [set]) and "
+        "[controller]",
+    )
+    dr.add_argument(
+        "--device",
+        choices=("openhaptics",),
+        default="openhaptics",
+        help="the device's SDK: openhaptics (Touch, PHANTOM Omni; the default)",
+    )
+    dr.add_argument(
+        "--library",
+        metavar="PATH",
+        help="the SDK's library (default: libHD.so on the loader's path, then /opt/OpenHaptics)",
+    )
+    dr.add_argument(
+        "--device-name",
+        metavar="NAME",
+        help="the device's name in the Touch setup tool (default: the default device)",
+    )
+    dr.add_argument("--duration", type=float, help="stop after this many seconds (default: Ctrl-C)")
+    dr.add_argument("--out", help="output folder (default: out/<name>-drive)")
+    dr.add_argument("--format", choices=LOG_FORMATS, default="csv", help=FORMAT_HELP)
+    dr.add_argument(
+        "--watchdog-ms",
+        type=float,
+        default=5.0,
+        help="a tick this late zeroes the force, which then ramps in again (default: 5)",
+    )
+    dr.add_argument("--figures", action="store_true", help="also plane.png and time.png")
+    dr.add_argument("--quiet", action="store_true", help="no status line")
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)
@@ -561,6 +640,7 @@ COMMANDS = {
     "sweep": cmd_sweep,
     "quality": cmd_quality,
     "view": cmd_view,
+    "drive": cmd_drive,
 }
 
 
