@@ -16,8 +16,8 @@ virtmech view [SCENARIO | LOG_DIR]    a live 3-D viewer in the browser, the mous
              [--port P] [--open]      or a run's log played back (docs/viewer.md)
 virtmech drive SCENARIO --device openhaptics   the scenario's mechanism on a real device
              [--library PATH] [--device-name NAME] [--duration S] [--out DIR]
-             [--format csv|parquet] [--watchdog-ms MS] [--figures] [--quiet]
-                                      (docs/devices.md, "Running on a real Touch")
+             [--format csv|parquet] [--watchdog-ms MS] [--figures] [--view PORT]
+             [--quiet]                (docs/devices.md, "Running on a real Touch")
 
 A mistake in the input (a scenario, a flag, a path; virtmech.errors.UserError) is reported
 as one message on stderr, with exit status 2; a device fault (drive) with exit status 1.
@@ -405,6 +405,7 @@ def cmd_drive(args) -> int:
             watchdog_ms=args.watchdog_ms,
             figures=args.figures,
             quiet=args.quiet,
+            view_port=args.view,
         )
     except drive.DeviceFault as e:
         print(f"virtmech drive: {e}", file=sys.stderr)
@@ -625,6 +626,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="a tick this late zeroes the force, which then ramps in again (default: 5)",
     )
     dr.add_argument("--figures", action="store_true", help="also plane.png and time.png")
+    dr.add_argument(
+        "--view",
+        type=_port,
+        metavar="PORT",
+        help="the viewer follows the device at http://127.0.0.1:PORT (needs the [view] extra)",
+    )
     dr.add_argument("--quiet", action="store_true", help="no status line")
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")

@@ -2,7 +2,7 @@
 
     virtmech drive SCENARIO --device openhaptics [--library PATH] [--device-name NAME]
                    [--duration S] [--out DIR] [--format csv|parquet] [--watchdog-ms MS]
-                   [--figures] [--quiet]
+                   [--figures] [--view PORT] [--quiet]
 
 1. The scenario's [device], [mechanism] (and [set]) and [controller] say what to render; its
    simulation's sections ([physics], [human], [[intent]], [initial], [checks], [sensors] but
@@ -14,7 +14,9 @@
    ramps in.
 4. Every tick goes to the log (``virtmech run``'s format, plus the driver's columns) and a
    status line shows the rate, |f|, the status, the worst tick and the late ticks.
-5. --duration, Ctrl-C or SIGTERM end the run (exit 0); a device error, a stalled servo or
+5. With --view PORT the viewer (virtmech view's, in the browser) follows the device: the real
+   handle, the mechanism's placements and the forces, live; the hand gizmo is off.
+6. --duration, Ctrl-C or SIGTERM end the run (exit 0); a device error, a stalled servo or
    joint readings implausible for too long end it with one line saying why (exit 1). Either
    way the torque goes to zero, then the scheduler stops and the device is disabled.
 
@@ -377,10 +379,12 @@ def run(
     watchdog_ms: float = WATCHDOG_MS,
     figures: bool = False,
     quiet: bool = False,
+    view_port: int | None = None,
 ) -> DriveResult:
     """Drives a device with a scenario's controller (a Scenario from `load`) until
     `duration_s` (None: until Ctrl-C or SIGTERM) or a fault; writes the log and run.json in
-    `out` (None: none). Raises UserError for a mistake of the input (a missing library, a
+    `out` (None: none); with `view_port`, the viewer follows the device on that port
+    (virtmech.view.device). Raises UserError for a mistake of the input (a missing library, a
     device that does not match the scenario) and DeviceFault for a device that fails before
     the servo runs; a fault while running ends the run (DriveResult.exit_code 1). SIGINT and
     SIGTERM end the run (exit 0) from the moment the device is opened."""
@@ -392,6 +396,8 @@ def run(
         raise UserError(f"--duration {duration_s:g}: expected a number of seconds > 0")
     if not quiet:
         _require_rich()
+    if view_port is not None:
+        _require_viewer()
     d = _driver_module()
     S = scenario.data
 
@@ -401,6 +407,7 @@ def run(
 
     model = _model_device(S)
     driver = d.OpenHapticsDriver(library or "", device_name or "")
+    viewer = None
     with _Stop() as stop:
         _opened(driver, model, f"{scenario.source}: [device] {S['device']['type']}")
         try:
@@ -420,6 +427,8 @@ def run(
             dev, renderer, first = build_renderer(S, limit, watchdog_ms * 1e-3)
             cutoff = float(S["sensors"]["velocity_cutoff_hz"])
             rows = LogRows(S, dev, renderer)
+            if view_port is not None:  # before the servo: a port taken is a mistake, not a fault
+                viewer = _viewer(S, scenario.name, dev, first.mechanism, view_port, notify)
             try:
                 driver.start(renderer, period_s=period, velocity_cutoff_hz=cutoff)
             except d.DeviceMismatch as e:
@@ -427,14 +436,42 @@ def run(
             except d.DeviceFault as e:
                 raise DeviceFault(str(e)) from None
             sinks = _sinks(out, fmt, rows.columns, figures)
+            if viewer is not None:
+                sinks.append(viewer.replay.append)
             result = _serve(driver, scenario.name, rows, stop, duration_s, sinks, quiet)
         finally:
             driver.stop()
+            if viewer is not None:
+                viewer.stop()
     result.info = {**info, "calibration": calibration}
     result.out = Path(out) if out is not None else None
     if out is not None:
         _finish(result, scenario, dev, first, rows, out, fmt, figures, cutoff, watchdog_ms)
     return result
+
+
+def _require_viewer() -> None:
+    """The viewer's packages, or a UserError saying how to install them."""
+    for module, extra in (("viser", "view"), ("mujoco", "view")):
+        try:
+            __import__(module)
+        except ImportError:
+            raise UserError(
+                f"virtmech drive --view: the viewer needs the [{extra}] extra ({module} is not "
+                f"installed); install it with: pip install 'virtmech[{extra}]'"
+            ) from None
+
+
+def _viewer(S: dict, name: str, device, mech, port: int, notify):
+    """The viewer following the device (its feed: viewer.replay), started on `port`."""
+    from .view.device import DeviceFeed
+    from .view.server import ViewServer, check_port
+
+    check_port("127.0.0.1", port, f"--view {port}")
+    check_port("127.0.0.1", port + 1, f"--view {port} (the state endpoint: {port + 1})")
+    viewer = ViewServer(DeviceFeed(S, name, device, mech), port=port).start()
+    notify(f"the viewer follows the device at {viewer.url} (state: {viewer.state_url})")
+    return viewer
 
 
 def _model_device(S: dict):
@@ -485,12 +522,14 @@ def _serve(driver, name: str, rows: LogRows, stop, duration_s, sinks: list, quie
     finally:
         status.close(st or None)
         for s in sinks:
-            s.close()
+            if hasattr(s, "close"):
+                s.close()
     message, code = _ending(reason, st, driver)
     result = DriveResult(reason, code, message, dict(st), {})
     result.stats["wall_time_s"] = wall
     result.stats["rows"] = written
-    result._scratch = sinks[1] if len(sinks) > 1 else None  # type: ignore[attr-defined]
+    scratch = [s for s in sinks if isinstance(s, _KeepOpen)]
+    result._scratch = scratch[0] if scratch else None  # type: ignore[attr-defined]
     return result
 
 

@@ -377,3 +377,38 @@ def test_a_set_of_mechanisms_is_driven(library, tmp_path):
     cols, log = read_log(out)
     assert set(np.unique(log[:, cols.index("member")])) <= {-1.0, 0.0, 1.0}
     assert run_json["drive"]["ticks"] == len(log) >= 300
+
+
+def test_the_viewer_follows_the_driven_device(library, tmp_path):
+    # drive --view: the viewer's state (GET /state) is the device's latest tick: the handle
+    # where the replayed readings put it, the target on it (no hand gizmo), time going on
+    from test_view import free_port_pair, get_state
+
+    S, device, mech = scenario_objects()
+    q, _ = held_poses(device, mech)
+    cfg = ds.write_config(tmp_path, **ds.write_replay(tmp_path, q))
+    port = free_port_pair()
+    args = [str(scenario_file(tmp_path)), "--library", str(library), "--duration", "6"]
+    p = ds.drive_process([*args, "--out", str(tmp_path / "o"), "--view", str(port), "--quiet"], cfg)
+    states = []
+    try:
+        deadline = time.monotonic() + 60
+        while p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.5)
+            try:
+                states.append(get_state(port))
+            except OSError:
+                continue  # not serving yet, or stopped
+        p.wait(timeout=60)
+    finally:
+        p.kill()
+    assert p.returncode == 0, p.communicate()[1]
+    ticking = [s for s in states if s["t"] > 0]
+    assert len(ticking) >= 3
+    assert all(s["mode"] == "device" for s in states)
+    assert ticking[-1]["t"] > ticking[0]["t"]
+    poses = [device.forward(pose)[:3, 3] for pose in q[:: int(round(0.4 / T))]]
+    for s in ticking:
+        handle = np.asarray(s["handle"]["position"])
+        assert min(np.linalg.norm(handle - x) for x in poses) < 1e-9
+        np.testing.assert_array_equal(s["target"]["position"], handle)

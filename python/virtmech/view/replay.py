@@ -40,10 +40,7 @@ class Replay:
     """A logged run, frame by frame: `frame(t)` at the last logged cycle at or before t."""
 
     def __init__(self, folder: str | Path):
-        import mujoco
-
-        from ..sim.loop import device_physics, make_device, make_mechanism
-        from ..sim.model import HandBody, build_mjcf, compile_model
+        from ..sim.loop import make_device, make_mechanism
 
         folder = Path(folder)
         self.folder = folder
@@ -65,6 +62,24 @@ class Replay:
                 f"LOG_DIR {folder}: run.json cannot be read as a run of `virtmech run` ({e})"
             ) from None
         self.info = info
+        self._drawn(S)
+        self.columns, self.log = self._read(log_path)
+        self.col = {c: i for i, c in enumerate(self.columns)}
+        c = self.col
+        self.t = self.log[:, c["t"]]
+        W = self.log[:, c["fx"] : c["fx"] + 6]
+        tw = self.log[:, c["vx"] : c["vx"] + 6]
+        self.work = np.cumsum(np.einsum("ij,ij->i", W, tw)) * self.T
+        self.duration = float(self.t[-1]) if len(self.t) else 0.0
+
+    def _drawn(self, S: dict) -> None:
+        """The device's model for drawing (no hand, no gravity), from the scenario data S
+        (self.device and self.mech built from it)."""
+        import mujoco
+
+        from ..sim.loop import device_physics
+        from ..sim.model import HandBody, build_mjcf, compile_model
+
         self.scenario_data = S
         self.n, self.m = self.device.dof, self.mech.dof
         self.T = float(S["controller"]["period_s"])
@@ -79,14 +94,6 @@ class Replay:
         self.model = compile_model(built)
         self.data = mujoco.MjData(self.model)
         self.C, self.c0 = built.coupling.C, built.coupling.c0
-        self.columns, self.log = self._read(log_path)
-        self.col = {c: i for i, c in enumerate(self.columns)}
-        c = self.col
-        self.t = self.log[:, c["t"]]
-        W = self.log[:, c["fx"] : c["fx"] + 6]
-        tw = self.log[:, c["vx"] : c["vx"] + 6]
-        self.work = np.cumsum(np.einsum("ij,ij->i", W, tw)) * self.T
-        self.duration = float(self.t[-1]) if len(self.t) else 0.0
 
     def needed(self) -> list[str]:
         names = ["t"]
