@@ -240,7 +240,8 @@ def test_a_shipped_scenario_s_simulation_sections_are_ignored_with_one_note(libr
     assert "note:" not in r.stderr
 
 
-def test_ctrl_c_stops_with_zero_torque_and_exit_0(library, scenario, tmp_path):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_stops_with_zero_torque_and_exit_0(library, scenario, tmp_path, signum):
     cfg = ds.write_config(tmp_path)
     out = tmp_path / "o"
     p = ds.drive_process([str(scenario), "--library", str(library), "--out", str(out)], cfg)
@@ -250,14 +251,14 @@ def test_ctrl_c_stops_with_zero_torque_and_exit_0(library, scenario, tmp_path):
             time.sleep(0.1)  # the first rows are written once the servo runs
         time.sleep(0.5)
         t0 = time.monotonic()
-        p.send_signal(signal.SIGINT)
+        p.send_signal(signum)
         p.wait(timeout=30)
         took = time.monotonic() - t0
     finally:
         p.kill()
     stdout, stderr = p.communicate()
     assert p.returncode == 0, stderr
-    print(f"Ctrl-C to exit: {took:.2f} s")
+    print(f"{signal.Signals(signum).name} to exit: {took:.2f} s")  # measured, not asserted
     assert "interrupted" in stdout
     s = ds.summary(tmp_path)
     assert s["scheduler_running"] == "0" and s["scheduler_stops"] != "0"
