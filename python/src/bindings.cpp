@@ -947,6 +947,22 @@ NB_MODULE(_core, m) {
       "weighted Gauss-Newton. Returns .theta, .iterations (0: closed form), .residual, "
       ".converged, .active (joints held at a limit).");
 
+  m.def(
+      "reach",
+      [](const Device& device, nb::handle target, nb::handle seeds, double length_scale,
+         int max_iterations) {
+        std::vector<JointVector> s;
+        for (nb::handle h : seeds) s.push_back(joint_values("seeds", h, device.dof()));
+        const DevicePose r = reach(device, to_pose("target", target), s, length_scale,
+                                   max_iterations);
+        return nb::make_tuple(Eigen::VectorXd(r.q), Eigen::VectorXd(r.error), r.seed);
+      },
+      "device"_a, "target"_a, "seeds"_a, "length_scale"_a = 0.1, "max_iterations"_a = 200,
+      "The device's joint values (dof,) within its limits whose handle pose is nearest the "
+      "target (4, 4), weighted [1 1 1 L^2 L^2 L^2]: Levenberg-Marquardt on the device's "
+      "kinematics from each seed (dof,) in turn, the first that reaches it kept, else the "
+      "nearest. Returns (q, pose_error(target, forward(q)) (6,), the seed's index).");
+
   // --- controller
   nb::class_<CycleOutput>(m, "CycleOutput", "Everything one controller cycle reports.")
       .def(nb::init<>(), "An empty output, to be filled by Controller.step(..., out=...).")

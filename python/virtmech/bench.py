@@ -7,10 +7,11 @@ For each benchmark case (a device and a mechanism, driven along a fixed joint tr
   ``operator new`` and, on glibc, a counting ``malloc``: real counts, not assumptions);
 - ``Controller.step`` called from Python over the same trajectory (median per call), so the
   binding's own cost is the difference;
-- when run from a source checkout, the NumPy reference cycle of ``tests/reference`` (the
-  same mathematics written the obvious way, its placements solved on their own to their own
-  tolerance), timed over the same cycles, with its largest torque difference from the core
-  (otherwise that column is skipped, with a note);
+- given a NumPy reference cycle (the same mathematics written the obvious way, its
+  placements solved on their own to their own tolerance: ``tests/reference`` of a source
+  checkout, which ``bench/numpy_baseline.py`` passes in; the installed package has none and
+  skips that column with a note), that cycle timed over the same cycles, with its largest
+  torque difference from the core;
 
 and, when the simulation is installed, the closed-loop simulation's real-time factor for
 every shipped scenario. The trajectory and the cases are those of ``bench/bench_cases.hpp``.
@@ -203,29 +204,6 @@ def python_step(case: Case, cycles: int) -> dict[str, Any]:
             "iterations": its, "q": q, "dq": dq}
 
 
-def load_reference(roots: list[Path] | None = None) -> tuple[Any, str]:
-    """The NumPy reference cycle (tests/reference), found in a source checkout: the current
-    directory or one above it, or $VIRTMECH_SOURCE_DIR. It is not shipped with the package.
-    Returns the module, or None and why not."""
-    if roots is None:
-        env = os.environ.get("VIRTMECH_SOURCE_DIR")
-        roots = [Path(env)] if env else []
-        roots += [Path.cwd(), *Path.cwd().parents]
-    for root in roots:
-        if (root / "tests" / "reference" / "__init__.py").is_file() and \
-                (root / "bench" / "bench_cases.hpp").is_file():
-            path = str(root / "tests")
-            if path not in sys.path:
-                sys.path.insert(0, path)
-            try:
-                import reference
-            except Exception as exc:  # a broken checkout: report, do not fail the run
-                return None, f"NumPy reference in {root} not importable ({exc})"
-            return reference, ""
-    return None, ("NumPy column skipped: the NumPy reference cycle (tests/reference) comes "
-                  "with a source checkout; run from the repository or set VIRTMECH_SOURCE_DIR")
-
-
 def numpy_reference(case: Case, reference: Any, q_warm: np.ndarray, dq_warm: np.ndarray,
                     q: np.ndarray, dq: np.ndarray) -> dict[str, Any]:
     """Runs the NumPy reference cycle (its own placements, to its own tolerance): untimed
@@ -326,7 +304,7 @@ def mujoco_alone_s(result: Any, repeats: int = 3) -> float:
     import mujoco
     from mujoco import rollout
 
-    from virtmech.sim.loop import make_device
+    from virtmech.builder import make_device
     from virtmech.sim.model import coupling_of
 
     model = mujoco.MjModel.from_xml_string(result.info["mjcf"])
@@ -380,10 +358,19 @@ def machine() -> dict[str, Any]:
     return info
 
 
+#: why the NumPy column is empty when no reference is given
+NO_REFERENCE = ("NumPy column skipped: the NumPy reference cycle is not part of the package; "
+                "from a source checkout, python bench/numpy_baseline.py (or scripts/bench.sh) "
+                "measures it")
+
+
 def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CYCLES,
             numpy_cycles: int = DEFAULT_NUMPY_CYCLES, cases: list[str] | None = None,
-            simulation: bool = True, cpu: int | None = None) -> dict[str, Any]:
-    """Runs every measurement and returns the report (the --json object)."""
+            simulation: bool = True, cpu: int | None = None,
+            reference: Any = None) -> dict[str, Any]:
+    """Runs every measurement and returns the report (the --json object). `reference`: a
+    NumPy reference cycle module (tests/reference's interface: case_models, NpController),
+    timed beside the core when given."""
     import virtmech as vm
 
     names = list(cases) if cases else list(CASES)
@@ -394,9 +381,11 @@ def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CY
     report["sizeof"] = harness["sizeof"]
     report["allocation_counter"] = harness["allocation_counter"]
     by_name = {c["name"]: c for c in harness["cases"]}
-    reference, numpy_note = (None, "NumPy column skipped (--numpy-cycles 0)")
-    if numpy_cycles > 0:
-        reference, numpy_note = load_reference()
+    numpy_note = "NumPy column skipped (--numpy-cycles 0)" if numpy_cycles <= 0 else ""
+    if numpy_cycles <= 0:
+        reference = None
+    elif reference is None:
+        numpy_note = NO_REFERENCE
     out_cases = []
     for name in names:
         h = by_name[name]
@@ -496,8 +485,9 @@ def format_table(r: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str]) -> int:
-    """Entry point of `virtmech bench [--json]`; returns the exit status."""
+def main(argv: list[str], reference: Any = None) -> int:
+    """Entry point of `virtmech bench [--json]` (and of bench/numpy_baseline.py, which passes
+    the NumPy reference cycle); returns the exit status."""
     p = argparse.ArgumentParser(prog="virtmech bench", description=__doc__.split("\n\n")[0])
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--cycles", type=int, default=DEFAULT_CYCLES,
@@ -505,8 +495,8 @@ def main(argv: list[str]) -> int:
     p.add_argument("--python-cycles", type=int, default=DEFAULT_PYTHON_CYCLES,
                    help=f"timed Python step calls per case (default {DEFAULT_PYTHON_CYCLES})")
     p.add_argument("--numpy-cycles", type=int, default=DEFAULT_NUMPY_CYCLES,
-                   help="timed cycles of the NumPy reference per case, from a source checkout "
-                   f"(default {DEFAULT_NUMPY_CYCLES}; 0: skip)")
+                   help="timed cycles of the NumPy reference per case, where there is one "
+                   f"(bench/numpy_baseline.py; default {DEFAULT_NUMPY_CYCLES}; 0: skip)")
     p.add_argument("--case", action="append", choices=CASES, help="only this case (repeatable)")
     p.add_argument("--no-sim", action="store_true", help="skip the simulation figures")
     p.add_argument("--cpu", type=int, default=None, help="pin the C++ harness to this CPU")
@@ -517,7 +507,8 @@ def main(argv: list[str]) -> int:
         if getattr(a, opt) < 1:
             p.error(f"--{opt.replace('_', '-')}: expected >= 1, got {getattr(a, opt)}")
     try:
-        r = collect(a.cycles, a.python_cycles, a.numpy_cycles, a.case, not a.no_sim, a.cpu)
+        r = collect(a.cycles, a.python_cycles, a.numpy_cycles, a.case, not a.no_sim, a.cpu,
+                    reference=reference)
     except (FileNotFoundError, RuntimeError) as exc:
         print(f"virtmech bench: {exc}", file=sys.stderr)
         return 1

@@ -80,65 +80,15 @@ def _require_format(fmt: str) -> None:
             raise UserError(f"--format parquet: {e}") from None
 
 
-def _run_one(
-    scenario,
-    out_dir: Path,
-    seed,
-    progress: bool,
-    fmt: str = "csv",
-    chunk_s: float | None = None,
-) -> dict:
-    """Runs a scenario into out_dir: the log (log.csv or log.parquet) written block by
-    block as the run goes, run.json, the figures; returns the metrics. The metrics and the
-    figures read the log back block by block from a scratch file of the columns they need
-    (removed at the end), so memory stays about one block (`chunk_s` of simulated time,
-    default virtmech.sim.loop.CHUNK_S) however long the run."""
-    from . import sim
-    from .sim.logio import CsvLog, LogFile, ParquetLog, Tee
-    from .sim.loop import CHUNK_S, make_device
-    from .sim.output import LARGE_LOG_BYTES, estimate_log_bytes, metric_columns, metrics, write_run
-    from .viz import write_figures
-    from .viz.figures import FIGURE_COLUMNS
+def _run_one(scenario, out_dir, seed, progress: bool, fmt: str = "csv", chunk_s=None) -> dict:
+    """Runs a scenario into out_dir (checked as --out; virtmech.runner writes the log,
+    run.json and the figures); returns the metrics."""
+    from .runner import run_scenario
 
     out = _out_dir(out_dir)
-    S = scenario.data
-    rows = int(round(S["duration_s"] / S["controller"]["period_s"])) + 1
-    cols = 140  # about: the exact count depends on the device and the mechanism
-    name = f"log.{fmt}"
-    size = estimate_log_bytes(rows, cols, fmt)
-    if size > LARGE_LOG_BYTES:
-        print(
-            f"virtmech: warning: {scenario.name}: {name} will be about {_size(size)} "
-            f"({rows:,} rows of about {cols} columns, {scenario.duration_s:g} s at "
-            f"{1 / S['controller']['period_s']:g} Hz)",
-            file=sys.stderr,
-        )
-    n = make_device(S["device"]).dof
-    keep = list(dict.fromkeys(metric_columns(n) + FIGURE_COLUMNS))
-    writer = ParquetLog(out / name) if fmt == "parquet" else CsvLog(out / name)
-    with writer, LogFile(out, keep) as scratch:
-        result = sim.run(
-            scenario,
-            seed=seed,
-            progress=progress,
-            sink=Tee(writer, scratch),
-            keep_log=False,
-            chunk_s=CHUNK_S if chunk_s is None else chunk_s,
-        )
-        result.source = scratch  # the metrics and the figures read it block by block
-        result.info["log_file"] = name
-        m = metrics(result)
-        write_run(result, out, log=False, metrics=m)
-        write_figures(result, out)
-    return m
-
-
-def _size(n: float) -> str:
-    for unit in ("bytes", "kB", "MB", "GB"):
-        if n < 1000 or unit == "GB":
-            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
-        n /= 1000
-    raise AssertionError  # pragma: no cover
+    return run_scenario(
+        scenario, seed=seed, progress=progress, out=out, fmt=fmt, chunk_s=chunk_s
+    ).metrics
 
 
 def cmd_scenarios(args) -> int:
@@ -268,7 +218,7 @@ def cmd_quality(args) -> int:
     if (s.data.get("set") or {}).get("members"):
         errors.append(Q.SET_REFUSED.format(scenario=args.scenario))
     if not errors:  # what run checks before it simulates, before anything is written
-        from .sim.loop import preflight
+        from .builder import preflight
 
         try:
             preflight(s)
@@ -476,20 +426,17 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
-
-    p = _Parser(
-        prog="virtmech",
-        description="virtmech: haptic devices rendered as virtual mechanisms (Luecke & Beckman).",
-    )
-    p.add_argument("--version", action="version", version=f"virtmech {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+def _add_demo(sub) -> None:
+    """`virtmech demo`: every shipped scenario and the report."""
     d = sub.add_parser("demo", help="run every shipped scenario and write the report")
     d.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
     d.add_argument("--only", nargs="+", metavar="NAME", help="run only these scenarios")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.add_argument("--format", choices=LOG_FORMATS, default="csv", help=FORMAT_HELP)
+
+
+def _add_run(sub) -> None:
+    """`virtmech run`: one scenario."""
     r = sub.add_parser("run", help="run one scenario (a TOML file or a shipped name)")
     r.add_argument("scenario", help="SCENARIO.toml or a name from `virtmech scenarios`")
     r.add_argument("--out", help="output folder (default: out/<name>)")
@@ -505,6 +452,10 @@ def build_parser() -> argparse.ArgumentParser:
         "(a dotted path; arrays by position: intent.1.force=[0,0,1]; values are TOML; "
         "repeatable)",
     )
+
+
+def _add_sweep(sub) -> None:
+    """`virtmech sweep`: a grid of runs."""
     w = sub.add_parser(
         "sweep", help="run a scenario over a grid of key values in parallel (docs/sweeps.md)"
     )
@@ -540,6 +491,10 @@ def build_parser() -> argparse.ArgumentParser:
         "dist_max_m; one key: six main metrics)",
     )
     w.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _add_quality(sub) -> None:
+    """`virtmech quality`: the rendering measured."""
     qp = sub.add_parser(
         "quality",
         help="measure the rendering: stiffness, forces along free motion, motor work, limit "
@@ -556,6 +511,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--set", action="append", metavar="KEY=VALUE", help="set a scenario key (as run)"
     )
     qp.set_defaults(duration=None)
+
+
+def _add_view(sub) -> None:
+    """`virtmech view`: the live viewer, or a run played back."""
     v = sub.add_parser(
         "view",
         help="a live 3-D viewer in the browser, the mouse as the hand; or a run's log played "
@@ -592,6 +551,9 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument(
         "--seed", type=_seed, help="random seed of the sensor noise (default: the scenario's)"
     )
+
+
+def _add_drive(sub) -> None:
     dr = sub.add_parser(
         "drive", help="render a scenario's mechanism on a real haptic device (docs/devices.md)"
     )
@@ -633,6 +595,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="the viewer follows the device at http://127.0.0.1:PORT (needs the [view] extra)",
     )
     dr.add_argument("--quiet", action="store_true", help="no status line")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    p = _Parser(
+        prog="virtmech",
+        description="virtmech: haptic devices rendered as virtual mechanisms (Luecke & Beckman).",
+    )
+    p.add_argument("--version", action="version", version=f"virtmech {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for add in (_add_demo, _add_run, _add_sweep, _add_quality, _add_view, _add_drive):
+        add(sub)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)

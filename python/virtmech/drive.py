@@ -142,32 +142,19 @@ def _table_name(key: str) -> str:
     )
 
 
-def build_renderer(S: dict, max_force_n: float, watchdog_s: float):
-    """(device, renderer, the [mechanism]'s controller) for the scenario data S: its [device],
-    [mechanism] (and [set]) and [controller], built with virtmech.sim.loop's builders, every
-    controller with the force limit max_force_n and a watchdog of watchdog_s (which the
-    scenario format does not carry: the set's members are built here with them)."""
-    from .sim.loop import controller_kwargs, make_device, make_mechanism
+def rig_for(scenario, max_force_n: float | None = None, watchdog_s: float | None = None):
+    """The scenario's rig for a real device (virtmech.builder.build, simulated=False: the
+    device, the mechanisms, the controller and the renderer), its controllers rebuilt with
+    the device's force limit and a watchdog (which the scenario format does not carry)
+    where given."""
+    from .builder import build, built
 
-    device = make_device(S["device"])
-    kw = dict(controller_kwargs(S["controller"]), max_force=max_force_n, watchdog_s=watchdog_s)
-    mechanisms = [S["mechanism"]] + list((S.get("set") or {}).get("members") or [])
-    controllers = [vm.Controller(device, make_mechanism(m), **kw) for m in mechanisms]
-    if len(controllers) == 1:
-        return device, controllers[0], controllers[0]
-    st = S["set"]
-    renderer = vm.MechanismSet(
-        device,
-        len(controllers),
-        snap_distance=st["snap_distance"],
-        release_distance=st["release_distance"],
-        force_rate=st["force_rate"],
-        moment_rate=st["moment_rate"],
-        period_s=kw["period_s"],
-    )
-    for c in controllers:
-        renderer.add(c)
-    return device, renderer, controllers[0]
+    rig = build(scenario, simulated=False)
+    if max_force_n is None and watchdog_s is None:
+        return rig
+    settings = {"max_force": max_force_n, "watchdog_s": watchdog_s}
+    settings = {k: v for k, v in settings.items() if v is not None}
+    return built(scenario, "controller", lambda: rig.with_controller(**settings))
 
 
 # ---------------------------------------------------------------------------------------
@@ -176,27 +163,16 @@ def build_renderer(S: dict, max_force_n: float, watchdog_s: float):
 
 class LogRows:
     """Tick records (virtmech._driver, one float64 row each) as rows of the log: the
-    columns of `virtmech run`'s log (virtmech.sim.loop.log_columns; the measured joints are
+    columns of `virtmech run`'s log (virtmech.sim.log.log_columns; the measured joints are
     also the true ones, the hand's columns NaN: no hand model) then DRIVER_COLUMNS."""
 
-    def __init__(self, S: dict, device, renderer):
-        from .sim import loop
-
-        self.n = device.dof
-        if isinstance(renderer, vm.MechanismSet):  # its members are their mechanisms
-            members = [renderer.member(i).to_dict() for i in range(renderer.size)]
-            self.m = max(renderer.member(i).dof for i in range(renderer.size))
-            mech = renderer.member(0)
-        else:
-            members, self.m, mech = [], renderer.mechanism.dof, renderer.mechanism
-        self.members = members  # a set's members (as dicts), none for a controller
-        self.columns = loop.log_columns(self.n, self.m) + DRIVER_COLUMNS
+    def __init__(self, rig):
+        self.n, self.m = rig.device.dof, rig.width
+        self.members = [m.to_dict() for m in rig.mechanisms] if rig.is_set else []
+        self.columns = list(rig.columns) + DRIVER_COLUMNS
         self.index = {c: i for i, c in enumerate(self.columns)}
         self.fields = _driver_module().record_fields()
-        planar = loop.PlanarGeometry(mech) if S["mechanism"]["type"] == "PlanarArm" else None
-        self.derive = loop._PostColumns(
-            self.columns, members or [mech.to_dict()], planar, S["human"]["grip_contacts"]
-        )
+        self.derive = rig.derived_columns()  # its columns: the first of these
 
     def _put(self, out: np.ndarray, column: str, rec: np.ndarray, field: str, width: int):
         start = self.index[column]
@@ -405,7 +381,7 @@ def run(
         if not quiet:
             print(f"virtmech drive: {message}", file=sys.stderr)
 
-    model = _model_device(S)
+    model = rig_for(scenario).device  # the device model the device is checked against
     driver = d.OpenHapticsDriver(library or "", device_name or "")
     viewer = None
     with _Stop() as stop:
@@ -423,14 +399,13 @@ def run(
             if calibration is None:
                 message = "stopped (interrupted) before the servo started"
                 return DriveResult("interrupted", 0, message, {}, info)
-            limit = _force_limit(S, model, info)
-            dev, renderer, first = build_renderer(S, limit, watchdog_ms * 1e-3)
+            rig = rig_for(scenario, _force_limit(S, model, info), watchdog_ms * 1e-3)
             cutoff = float(S["sensors"]["velocity_cutoff_hz"])
-            rows = LogRows(S, dev, renderer)
+            rows = LogRows(rig)
             if view_port is not None:  # before the servo: a port taken is a mistake, not a fault
-                viewer = _viewer(S, scenario.name, dev, first.mechanism, view_port, notify)
+                viewer = _viewer(rig, view_port, notify)
             try:
-                driver.start(renderer, period_s=period, velocity_cutoff_hz=cutoff)
+                driver.start(rig.renderer, period_s=period, velocity_cutoff_hz=cutoff)
             except d.DeviceMismatch as e:
                 raise UserError(f"{scenario.source}: {e}") from None
             except d.DeviceFault as e:
@@ -446,7 +421,7 @@ def run(
     result.info = {**info, "calibration": calibration}
     result.out = Path(out) if out is not None else None
     if out is not None:
-        _finish(result, scenario, dev, first, rows, out, fmt, figures, cutoff, watchdog_ms)
+        _finish(result, rig, rows, out, fmt, figures, cutoff, watchdog_ms)
     return result
 
 
@@ -462,24 +437,16 @@ def _require_viewer() -> None:
             ) from None
 
 
-def _viewer(S: dict, name: str, device, mech, port: int, notify):
+def _viewer(rig, port: int, notify):
     """The viewer following the device (its feed: viewer.replay), started on `port`."""
     from .view.device import DeviceFeed
     from .view.server import ViewServer, check_port
 
     check_port("127.0.0.1", port, f"--view {port}")
     check_port("127.0.0.1", port + 1, f"--view {port} (the state endpoint: {port + 1})")
-    viewer = ViewServer(DeviceFeed(S, name, device, mech), port=port).start()
+    viewer = ViewServer(DeviceFeed(rig), port=port).start()
     notify(f"the viewer follows the device at {viewer.url} (state: {viewer.state_url})")
     return viewer
-
-
-def _model_device(S: dict):
-    """The scenario's device model (the renderer is built on another instance of it, after
-    the device is open: its force limit is the device's)."""
-    from .sim.loop import make_device
-
-    return make_device(S["device"])
 
 
 def _serve(driver, name: str, rows: LogRows, stop, duration_s, sinks: list, quiet: bool):
@@ -607,27 +574,26 @@ def _ending(reason: str, st: dict, driver) -> tuple[str, int]:
     return f"stopped ({why}) {at}: {safe}", 0
 
 
-def _finish(result, scenario, dev, first, rows, out, fmt, figures, cutoff, watchdog_ms):
+def _finish(result, rig, rows, out, fmt, figures, cutoff, watchdog_ms):
     """run.json (the device's identification, the measured rate), the metrics where they
     apply, and the figures when asked for."""
-    from .sim.loop import SimResult
+    from .sim.log import SimResult
     from .sim.output import metrics, write_run
 
     out = Path(out)
-    S = scenario.data
     scratch = getattr(result, "_scratch", None)
     st = result.stats
-    members = (S.get("set") or {}).get("members") or []
     info = {
-        "device": dev.to_dict(),
-        "mechanism": first.mechanism.to_dict(),
+        "device": rig.device.to_dict(),
+        "mechanism": rig.mechanism.to_dict(),
         **(
-            {"set_members": rows.members, "set": dict(S["set"], members=len(rows.members))}
-            if members
+            {"set_members": rows.members, "set": dict(rig.data["set"], members=len(rows.members))}
+            if rig.is_set
             else {}
         ),
         "controller_model": {
-            k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in first.model.items()
+            k: (v.tolist() if isinstance(v, np.ndarray) else v)
+            for k, v in rig.controller.model.items()
         },
         "versions": {
             "virtmech": vm.__version__,
@@ -654,7 +620,7 @@ def _finish(result, scenario, dev, first, rows, out, fmt, figures, cutoff, watch
         },
     }
     sim = SimResult(
-        scenario=scenario,
+        scenario=rig.scenario,
         columns=rows.columns,
         log=np.empty((0, len(rows.columns))),
         sim_time_s=float(st["elapsed_s"]),
@@ -681,4 +647,4 @@ def _finish(result, scenario, dev, first, rows, out, fmt, figures, cutoff, watch
     path.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
 
 
-__all__ = ["DEVICES", "DeviceFault", "DriveResult", "LogRows", "build_renderer", "load", "run"]
+__all__ = ["DEVICES", "DeviceFault", "DriveResult", "LogRows", "load", "rig_for", "run"]

@@ -23,9 +23,7 @@ Every run is independent; `workers` > 1 runs them in a process pool.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from itertools import product
 from typing import Any
@@ -101,10 +99,10 @@ class Run:
 
 def _simulate(raw: dict) -> Run:
     from . import scenarios as sc
-    from .sim import run
+    from .runner import run_scenario
 
     scenario = sc.validate(raw, source=f"quality:{raw.get('name', '?')}")
-    r = run(scenario)
+    r = run_scenario(scenario, keep=_COLUMNS, metrics=False).result
     n = sum(c.startswith("tau") and c[3:].isdigit() for c in r.columns)
     extra = [c for c in ("arm_pos_angle",) if c in r.columns]
     cols = {c: r.col(c) for c in (*_COLUMNS, *extra)}
@@ -115,15 +113,12 @@ def _simulate(raw: dict) -> Run:
 
 def run_all(raws: Sequence[dict], workers: int | None = 1) -> list[Run]:
     """Simulates every raw scenario, in order; workers > 1 (None: the machine's cores) in a
-    process pool."""
-    from .sweep import process_context
+    process pool (virtmech.pool)."""
+    from .pool import run_tasks
 
-    workers = (os.cpu_count() or 1) if workers is None else workers
-    if workers <= 1 or len(raws) <= 1:
-        return [_simulate(r) for r in raws]
-    ctx = process_context(["virtmech.quality", "virtmech.sim.loop"])
-    with ProcessPoolExecutor(min(workers, len(raws)), mp_context=ctx) as ex:
-        return list(ex.map(_simulate, raws))
+    return run_tasks(
+        _simulate, list(raws), workers=workers, preload=["virtmech.quality", "virtmech.runner"]
+    )
 
 
 # ---------------------------------------------------------------------------------------
@@ -148,9 +143,9 @@ class Setup:
         if human:
             self.raw["human"] = {**self.raw.get("human", {}), **human}
         self.mechanism = scenario.data["mechanism"]
-        from .sim.loop import make_mechanism
+        from .builder import build
 
-        self._mech = make_mechanism(self.mechanism)
+        self._mech = build(scenario, simulated=False).mechanism
         self._start: np.ndarray | None = None
 
     def raw_with(

@@ -149,47 +149,26 @@ TRUTH_COLUMNS = (
 
 def mujoco_config(folder: Path, scenario, reference) -> dict:
     """The stand-in's keys serving the simulated device of `scenario` as `virtmech run`
-    builds it (virtmech.sim.loop.run: the same MJCF, compiled and saved as MJB, the same loop
+    builds it (virtmech.builder: the same MJCF, compiled and saved as MJB, the same loop
     settings), with the hand's plan the simulation's intent gives: each segment planned from
     the handle's pose where it starts in `reference` (the SimResult of that run)."""
     import mujoco
 
     import virtmech.sim.inner as inner
-    from virtmech.sim import loop
-    from virtmech.sim.human import PLAN_COLUMNS, HandImpedance, Intent
-    from virtmech.sim.model import HandBody, build_mjcf, compile_model, world_gravity
-    from virtmech.sim.sensors import Sensors, SensorSettings
+    from virtmech.builder import build
+    from virtmech.sim.human import PLAN_COLUMNS
 
-    S = scenario.data
-    device = loop.make_device(S["device"])
-    mech = loop.make_mechanism(S["mechanism"])
-    T = S["controller"]["period_s"]
-    human = HandImpedance(**{k: S["human"][k] for k in HandImpedance().to_dict()})
-    phys = loop.device_physics(S["device"])
-    g_world = world_gravity(device)
-    nsub = int(round(S["physics"]["rate_hz"] * T))
-    built = build_mjcf(
-        device,
-        params=phys,
-        hand=HandBody(human.mass_kg, human.inertia),
-        gravity=g_world if S["physics"]["gravity"] else np.zeros(3),
-        timestep=T / nsub,
-    )
-    model = compile_model(built)
-    mujoco.mj_saveModel(model, str(folder / "model.mjb"), None)
-    C, Cinv, c0 = built.coupling.C, built.coupling.Cinv, built.coupling.c0
-    q0 = np.asarray(reference.info["initial_q"])
-    comp = []
-    if S["physics"]["gravity"] and S["physics"]["gravity_compensation"]:
-        comp = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in built.device_bodies]
-    sensors = Sensors(SensorSettings(**S["sensors"]), device.dof, T, np.random.default_rng(0))
+    rig = build(scenario)
+    sim, device, T = rig.sim, rig.device, rig.period_s
+    mujoco.mj_saveModel(sim.model, str(folder / "model.mjb"), None)
+    cp = sim.coupling
+    comp = sim.comp_bodies if sim.gravity_compensation else []
 
     # the hand's plan, segment by segment from the reference's handle pose at its start
     N = reference.n_cycles
     q_true = reference.cols(*[f"q{i}" for i in range(device.dof)])
-    intent = Intent(S["intent"], human, mech, device.forward(q0), T)
-    starts = sorted(set(intent.start_cycles(N)) | {0})
-    cuts = starts + [N]
+    intent = rig.intent()
+    cuts = sorted(set(intent.start_cycles(N)) | {0}) + [N]
     plan = np.concatenate(
         [intent.plan(k0, k1, device.forward(q_true[k0])) for k0, k1 in zip(cuts[:-1], cuts[1:])]
     )
@@ -198,25 +177,25 @@ def mujoco_config(folder: Path, scenario, reference) -> dict:
     # PlanLayout's fields in its order (servo_loop.hpp)
     order = "columns anchor_p anchor_R anchor_v anchor_w k_t b_t k_r b_r force moment"
     order = (order + " force_in_handle hand_attached segment").split()
-    p = S["device"]
+    p = scenario.data["device"]
     return {
         "mode": "mujoco",
         "model": folder / "model.mjb",
         "l1": p["l1"],
         "l2": p["l2"],
-        "coupling_inv": np.asarray(Cinv, dtype=float),
-        "coupling_offset": np.asarray(c0, dtype=float),
+        "coupling_inv": np.asarray(cp.Cinv, dtype=float),
+        "coupling_offset": np.asarray(cp.c0, dtype=float),
         "actuated": [int(i) for i in np.flatnonzero(device.actuated)],
-        "substeps": nsub,
+        "substeps": sim.substeps,
         "period_s": T,
         "comp_bodies": comp,
-        "comp_masses": [float(model.body_mass[b]) for b in comp],
-        "gravity": np.asarray(g_world, dtype=float),
-        "quantum": float(sensors.step),
-        "delay_cycles": int(sensors.s.delay_cycles),
-        "velocity_alpha": float(sensors.alpha),
-        "hand_body": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "hand"),
-        "qpos0": C @ q0 + c0,
+        "comp_masses": [float(sim.model.body_mass[b]) for b in comp],
+        "gravity": np.asarray(sim.gravity_world, dtype=float),
+        "quantum": rig.sensors.quantum_rad,
+        "delay_cycles": int(rig.sensors.delay_cycles),
+        "velocity_alpha": rig.sensors.velocity_alpha(T),
+        "hand_body": sim.hand_body,
+        "qpos0": cp.C @ rig.q0 + cp.c0,
         "plan_file": folder / "plan.bin",
         "plan_rows": len(plan),
         "plan_layout": [lay[k] for k in order],

@@ -291,9 +291,9 @@ def test_the_log_streams_in_blocks_and_keeps_none_in_memory(tmp_path):
 
 def test_a_large_log_is_kept_in_a_file_not_in_memory(tmp_path, monkeypatch):
     from virtmech import sim
-    from virtmech.sim import loop
+    from virtmech.sim import log as simlog
 
-    monkeypatch.setattr(loop, "LOG_IN_MEMORY_BYTES", 0)
+    monkeypatch.setattr(simlog, "LOG_IN_MEMORY_BYTES", 0)
     s = sc.load("planar3r-fig9").with_overrides(duration_s=0.2)
     r = sim.run(s, spill_dir=tmp_path, chunk_s=0.05)
     assert isinstance(r.log, np.memmap) and r.log.shape[0] == 201

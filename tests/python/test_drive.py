@@ -17,7 +17,9 @@ import pyarrow.parquet as pq
 import pytest
 
 import virtmech as vm
-from virtmech.sim.loop import controller_kwargs, log_columns, make_device, make_mechanism, solve_ik
+from virtmech.builder import controller_kwargs, make_device, make_mechanism
+from virtmech.sim.log import log_columns
+from virtmech.sim.start import seeds
 
 T = 1e-3
 SCENARIO = """
@@ -83,7 +85,7 @@ def held_poses(device, mech, seconds_each: float = 0.4) -> tuple[np.ndarray, lis
         th[0] = theta
         target = mech.forward(th)
         target[:3, 3] += offset
-        q, err = solve_ik(device, target, mech.length_scale)
+        q, err, _ = vm.reach(device, target, seeds(device), mech.length_scale)
         assert np.linalg.norm(err) < 1e-9
         poses.append(q)
     n = int(round(seconds_each / T))

@@ -29,7 +29,7 @@ pytest.importorskip("matplotlib")
 
 import virtmech.scenarios as sc  # noqa: E402
 from virtmech.cli import main  # noqa: E402
-from virtmech.sim.loop import log_columns  # noqa: E402
+from virtmech.sim.log import log_columns  # noqa: E402
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--use-gl=angle", "--use-angle=swiftshader"]

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from ..jsonable import jsonable
+from .log import UNITS, SimResult
 from .logio import CsvLog, ParquetLog  # noqa: F401 (the sinks, here as before)
-from .loop import UNITS, SimResult
 
 WITHIN_M = 1e-3  # the "within 1 mm of the mechanism" threshold of the metrics
 
@@ -215,7 +215,7 @@ def _total(parts: list[float]) -> float:
 
 
 def _accumulator(scenario, mech: dict) -> _MetricSums:
-    from .loop import make_device
+    from ..builder import make_device
 
     device = make_device(scenario.data["device"])
     act = np.asarray(device.actuated, dtype=bool)

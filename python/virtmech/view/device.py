@@ -18,12 +18,12 @@ class DeviceFeed(Replay):
     thread (`append`), read frame by frame by the viewer's (each read sees one whole
     snapshot: appending swaps it at once)."""
 
-    def __init__(self, scenario_data: dict, name: str, device, mech, window_s: float = 20.0):
+    def __init__(self, rig, window_s: float = 20.0):
         self.folder = None
         self.info = {}
-        self.name = name
-        self.device, self.mech = device, mech
-        self._drawn(scenario_data)
+        self.name = rig.scenario.name
+        self._drawn(rig.data, rig)
+        device = self.device
         self.columns = self.needed()
         self.col = {c: i for i, c in enumerate(self.columns)}
         self.rows = max(2, int(round(window_s / self.T)))

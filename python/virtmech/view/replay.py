@@ -40,7 +40,8 @@ class Replay:
     """A logged run, frame by frame: `frame(t)` at the last logged cycle at or before t."""
 
     def __init__(self, folder: str | Path):
-        from ..sim.loop import make_device, make_mechanism
+        from .. import scenarios as sc
+        from ..builder import build
 
         folder = Path(folder)
         self.folder = folder
@@ -55,14 +56,13 @@ class Replay:
             info = json.loads(run_json.read_text(encoding="utf-8"))
             S = info["scenario"]
             self.name = str(info.get("name", folder.name))
-            self.device = make_device(S["device"])
-            self.mech = make_mechanism(S["mechanism"])
+            rig = build(sc.validate(S, source=str(run_json)), simulated=False)
         except (OSError, ValueError, KeyError, TypeError) as e:
             raise UserError(
                 f"LOG_DIR {folder}: run.json cannot be read as a run of `virtmech run` ({e})"
             ) from None
         self.info = info
-        self._drawn(S)
+        self._drawn(S, rig)
         self.columns, self.log = self._read(log_path)
         self.col = {c: i for i, c in enumerate(self.columns)}
         c = self.col
@@ -72,16 +72,16 @@ class Replay:
         self.work = np.cumsum(np.einsum("ij,ij->i", W, tw)) * self.T
         self.duration = float(self.t[-1]) if len(self.t) else 0.0
 
-    def _drawn(self, S: dict) -> None:
-        """The device's model for drawing (no hand, no gravity), from the scenario data S
-        (self.device and self.mech built from it)."""
+    def _drawn(self, S: dict, rig) -> None:
+        """The device and the mechanism of the scenario data S (`rig`, built from it with
+        simulated=False), and the device's model for drawing (no hand, no gravity)."""
         import mujoco
 
-        from ..sim.loop import device_physics
-        from ..sim.model import HandBody, build_mjcf, compile_model
+        from ..sim.model import HandBody, build_mjcf, compile_model, device_physics
 
         self.scenario_data = S
-        self.n, self.m = self.device.dof, self.mech.dof
+        self.device, self.mech = rig.device, rig.mechanism
+        self.n, self.m = rig.device.dof, rig.width
         self.T = float(S["controller"]["period_s"])
         built = build_mjcf(
             self.device,
