@@ -210,13 +210,14 @@ def cmd_quality(args) -> int:
 
     _require_sim("quality")
     s, errors = _set_and_duration(sc.load(args.scenario), args)
-    if s.data["mechanism"]["type"] not in Q.QUALITY_MECHANISMS:
-        errors.append(
-            f"{args.scenario}: mechanism.type {s.data['mechanism']['type']!r}: quality measures "
-            f"{', '.join(Q.QUALITY_MECHANISMS)}"
-        )
-    if (s.data.get("set") or {}).get("members"):
-        errors.append(Q.SET_REFUSED.format(scenario=args.scenario))
+    members = [s.data["mechanism"], *((s.data.get("set") or {}).get("members") or [])]
+    for i, m in enumerate(members):
+        if m["type"] not in Q.QUALITY_MECHANISMS:
+            key = "mechanism" if i == 0 else f"set.members[{i - 1}]"
+            errors.append(
+                f"{args.scenario}: {key}.type {m['type']!r}: quality measures "
+                f"{', '.join(Q.QUALITY_MECHANISMS)}"
+            )
     if not errors:  # what run checks before it simulates, before anything is written
         from .builder import preflight
 
@@ -229,7 +230,7 @@ def cmd_quality(args) -> int:
     out = _out_dir(args.out or Path("out") / f"{s.name}-quality")
     t0 = time.perf_counter()
     grid = (Q.MAP_KP, Q.MAP_KV) if args.map else None
-    result = Q.measure(Q.Setup(s), workers=args.workers, stability_map_grid=grid)
+    result = Q.measure_scenario(s, workers=args.workers, stability_map_grid=grid)
     files = Q.write_report(result, out)
     if args.json:
         print(Q.to_json(result))
