@@ -2,12 +2,15 @@
 // for virtmech.sim. Linked with MuJoCo's C library from the mujoco wheel; mjModel and mjData
 // come from the mujoco package's MjModel and MjData (their `_address`).
 #include <mujoco/mujoco.h>
+#include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
 #include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -18,6 +21,7 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 using virtmech::Controller;
+using virtmech::Device;
 using virtmech::MechanismSet;
 using namespace virtmech::sim;
 
@@ -89,6 +93,19 @@ LogLayout log_layout(const nb::dict& d) {
        {"segment", &L::segment}, {"member", &L::member}});
 }
 
+// A simulated device driven from outside the simulation (virtmech ros2-sim): the loop's
+// external controller applies the joint torques the caller set last, held.
+struct HeldTorque final : ExternalController {
+  explicit HeldTorque(std::shared_ptr<Device> d)
+      : device_ptr(std::move(d)), torque(Eigen::VectorXd::Zero(device_ptr->dof())) {}
+  void control(double, const double*, const double*, double* tau) override {
+    for (Eigen::Index i = 0; i < torque.size(); ++i) tau[i] = torque[i];
+  }
+  const Device& device() const { return *device_ptr; }
+  std::shared_ptr<Device> device_ptr;
+  Eigen::VectorXd torque;
+};
+
 struct PyServoLoop {
   template <typename Renderer>  // a Controller or a MechanismSet
   PyServoLoop(Renderer& renderer, std::uintptr_t model, std::uintptr_t data,
@@ -101,6 +118,18 @@ struct PyServoLoop {
                       std::move(actuated), substeps, period_s, std::move(comp_bodies),
                       std::move(comp_masses), gravity, quantum, delay_cycles, velocity_alpha,
                       hand_body),
+             plan_layout(plan), log_layout(log)) {}
+
+  PyServoLoop(HeldTorque& held, std::uintptr_t model, std::uintptr_t data, CF64 coupling_inv,
+              CF64 coupling_offset, std::vector<int> actuated, int substeps, double period_s,
+              std::vector<int> comp_bodies, std::vector<double> comp_masses, CF64 gravity,
+              double quantum, int delay_cycles, double velocity_alpha, int hand_body,
+              const nb::dict& plan, const nb::dict& log)
+      : loop(held.device(), held, reinterpret_cast<mjModel*>(model),
+             reinterpret_cast<mjData*>(data),
+             settings(held.device().dof(), coupling_inv, coupling_offset, std::move(actuated),
+                      substeps, period_s, std::move(comp_bodies), std::move(comp_masses),
+                      gravity, quantum, delay_cycles, velocity_alpha, hand_body),
              plan_layout(plan), log_layout(log)) {}
 
   static LoopSettings settings(int n, const CF64& coupling_inv, const CF64& coupling_offset,
@@ -168,6 +197,18 @@ NB_MODULE(_sim, m) {
   m.def("mujoco_library_version", &mj_version, "mj_version() of the MuJoCo library loaded.");
   nb::class_<PyServoLoop> loop(m, "ServoLoop",
                                "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).");
+  nb::class_<HeldTorque>(m, "HeldTorque",
+                         "The joint torques (dof,) [N·m or N] a loop over it applies, as last "
+                         "set: a simulated device driven from outside (virtmech ros2-sim).")
+      .def(nb::init<std::shared_ptr<Device>>(), "device"_a)
+      .def_prop_rw(
+          "torque", [](const HeldTorque& h) { return h.torque; },
+          [](HeldTorque& h, CF64 tau) {
+            require_shape("torque", tau, size_t(h.torque.size()), 0);
+            h.torque = Eigen::Map<const Eigen::VectorXd>(tau.data(), h.torque.size());
+          },
+          "The held torque (dof,): set it between the loop's runs.");
+  def_init<HeldTorque>(loop, "The loop applying a HeldTorque's torque (controller: it).");
   def_init<MechanismSet>(loop, "The loop rendering a MechanismSet (controller: the set).");
   def_init<Controller>(
       loop,

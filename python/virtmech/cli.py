@@ -18,6 +18,11 @@ virtmech drive SCENARIO --device openhaptics   the scenario's mechanism on a rea
              [--library PATH] [--device-name NAME] [--duration S] [--out DIR]
              [--format csv|parquet] [--watchdog-ms MS] [--figures] [--view PORT]
              [--quiet]                (docs/devices.md, "Running on a real Touch")
+virtmech ros2 SCENARIO [--duration S] [--set KEY=VALUE ...] [--ros-args ...]
+                                      the scenario's renderer as a ROS 2 node (docs/ros2.md)
+virtmech ros2-sim SCENARIO [--lockstep] [--command TOPIC] [--duration S] [--out DIR]
+             [--seed N] [--set KEY=VALUE ...] [--ros-args ...]
+                                      the scenario's simulated device as a ROS 2 driver
 
 A mistake in the input (a scenario, a flag, a path; virtmech.errors.UserError) is reported
 as one message on stderr, with exit status 2; a device fault (drive) with exit status 1.
@@ -127,12 +132,12 @@ def _sets(texts) -> tuple[dict, list[str]]:
     return out, errors
 
 
-def _set_and_duration(s, args) -> tuple:
-    """The scenario with the --set keys and --duration, and every mistake of those flags
+def _with_sets(s, texts) -> tuple:
+    """The scenario with the --set keys, the keys' values, and every mistake of those flags
     (each --set on its own first, so that its message names it)."""
     from . import scenarios as sc
 
-    sets, errors = _sets(args.set)
+    sets, errors = _sets(texts)
     if sets:
         for key, value in sets.items():
             try:
@@ -144,6 +149,14 @@ def _set_and_duration(s, args) -> tuple:
                 s = s.with_keys(sets)
             except sc.ScenarioError as e:  # the keys are valid one by one, not together
                 errors += [f"--set: {m}" for m in e.messages]
+    return s, sets, errors
+
+
+def _set_and_duration(s, args) -> tuple:
+    """The scenario with the --set keys and --duration, and every mistake of those flags."""
+    from . import scenarios as sc
+
+    s, sets, errors = _with_sets(s, args.set)
     if args.duration is not None:
         try:
             s = s.with_overrides(duration_s=args.duration)
@@ -373,6 +386,50 @@ def cmd_drive(args) -> int:
     return r.exit_code
 
 
+def cmd_ros2(args) -> int:
+    from . import drive
+    from .ros2.runtime import require_ros
+
+    require_ros("ros2")
+    scenario, _ = drive.load(args.scenario)  # what a real device needs of the scenario
+    scenario, _, errors = _with_sets(scenario, args.set)
+    if args.duration is not None and not args.duration > 0:
+        errors.append(f"--duration {args.duration:g}: expected a number of seconds > 0")
+    if errors:
+        raise UserError(*errors)
+    from .ros2 import node
+
+    return node.run(scenario, args.ros_args, args.duration)
+
+
+def cmd_ros2_sim(args) -> int:
+    from . import scenarios as sc
+    from .ros2.runtime import require_ros
+
+    _require_sim("ros2-sim")
+    require_ros("ros2-sim")
+    s, errors = _set_and_duration(sc.load(args.scenario), args)
+    for flag, v in (("--timeout", args.timeout), ("--wait", args.wait)):
+        if not v >= 0 or (flag == "--timeout" and not v > 0):
+            errors.append(f"{flag} {v:g}: expected a number of seconds > 0")
+    if errors:
+        raise UserError(*errors)
+    out = _out_dir(args.out) if args.out else None
+    from .ros2 import sim_node
+
+    return sim_node.run(
+        s,
+        args.ros_args,
+        seed=args.seed,
+        command=args.command_topic,
+        lockstep=args.lockstep,
+        timeout_s=args.timeout,
+        wait_s=args.wait,
+        velocity=args.velocity,
+        out=out,
+    )
+
+
 def cmd_bench(argv: list[str]) -> int:
     from . import bench  # imported only when asked for
 
@@ -598,6 +655,77 @@ def _add_drive(sub) -> None:
     dr.add_argument("--quiet", action="store_true", help="no status line")
 
 
+ROS_ARGS_HELP = (
+    "everything after --ros-args goes to ROS 2: remappings (-r joint_states:=/phantom/"
+    "joint_states), parameters (-p watchdog_s:=0.05, --params-file FILE); docs/ros2.md"
+)
+
+
+def _add_ros2(sub) -> None:
+    """`virtmech ros2`: the renderer as a ROS 2 node."""
+    r = sub.add_parser(
+        "ros2",
+        help="render a scenario's mechanism on a device served by a ROS 2 driver (docs/ros2.md)",
+        epilog=ROS_ARGS_HELP,
+    )
+    r.add_argument(
+        "scenario",
+        help="SCENARIO.toml or a shipped name: its [device], [mechanism] (or [set]) and "
+        "[controller]",
+    )
+    r.add_argument("--duration", type=float, help="stop after this many seconds (default: Ctrl-C)")
+    r.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="set a scenario key (as run)"
+    )
+
+
+def _add_ros2_sim(sub) -> None:
+    """`virtmech ros2-sim`: the simulated device as a ROS 2 driver."""
+    from .ros2.sim_node import COMMANDS as ROS_COMMANDS
+
+    r = sub.add_parser(
+        "ros2-sim",
+        help="serve a scenario's simulated device (MuJoCo, its hand) as a ROS 2 driver: "
+        "joint_states out, the rendering node's commands in (docs/ros2.md)",
+        epilog=ROS_ARGS_HELP,
+    )
+    r.add_argument("scenario", help="SCENARIO.toml or a name from `virtmech scenarios`")
+    r.add_argument(
+        "--command",
+        dest="command_topic",
+        choices=ROS_COMMANDS,
+        default="joint_command",
+        help="the topic whose commands drive the device (default: joint_command)",
+    )
+    r.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="each cycle waits for the command answering its joint state (a reproducible run "
+        "at any load); default: real time",
+    )
+    r.add_argument(
+        "--timeout",
+        type=float,
+        default=1.0,
+        help="lockstep: the longest wait for a command [s] (default: 1); then the last one holds",
+    )
+    r.add_argument(
+        "--wait",
+        type=float,
+        default=10.0,
+        help="wait this long for the command topic's publisher before starting [s] (default: 10)",
+    )
+    r.add_argument(
+        "--velocity", action="store_true", help="joint_states carry the sensed velocity too"
+    )
+    r.add_argument("--duration", type=float, help="override duration_s [s]")
+    r.add_argument("--seed", type=_seed, help="random seed, 0 to 2**63-1 (default: the scenario's)")
+    r.add_argument("--out", help="write log.csv and run.json (with the metrics) to this folder")
+    r.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="set a scenario key (as run)"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
@@ -607,7 +735,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--version", action="version", version=f"virtmech {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for add in (_add_demo, _add_run, _add_sweep, _add_quality, _add_view, _add_drive):
+    for add in (
+        _add_demo, _add_run, _add_sweep, _add_quality, _add_view, _add_drive, _add_ros2,
+        _add_ros2_sim,
+    ):
         add(sub)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
@@ -624,7 +755,17 @@ COMMANDS = {
     "quality": cmd_quality,
     "view": cmd_view,
     "drive": cmd_drive,
+    "ros2": cmd_ros2,
+    "ros2-sim": cmd_ros2_sim,
 }
+
+
+def _split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
+    """A ROS 2 command's arguments and, from --ros-args on, ROS 2's own."""
+    if argv and argv[0] in ("ros2", "ros2-sim") and "--ros-args" in argv:
+        i = argv.index("--ros-args")
+        return argv[:i], argv[i:]
+    return argv, []
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -635,7 +776,9 @@ def main(argv: list[str] | None = None) -> int:
         if argv and argv[0] == "bench":
             return cmd_bench(argv[1:])
         p = build_parser()
+        argv, ros_args = _split_ros_args(argv)
         args = p.parse_args(argv)
+        args.ros_args = ros_args
         if args.command in COMMANDS:
             rc = COMMANDS[args.command](args)
         else:
