@@ -232,7 +232,8 @@ def numpy_reference(case: Case, reference: Any, q_warm: np.ndarray, dq_warm: np.
 
 
 def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
-                       mujoco_alone: Any = None) -> tuple[list[dict[str, Any]], str]:
+                       mujoco_alone: Any = None,
+                       show: Any = None) -> tuple[list[dict[str, Any]], str]:
     """Real-time factor of each shipped scenario, if the simulation is installed: simulated
     seconds per wall second of the closed loop (`SimResult.wall_time_s`); `repeats` runs,
     each followed by MuJoCo alone on the same steps (`mujoco_alone(result, 1)`, default
@@ -247,7 +248,8 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
     thread, alongside the loop), `derived_wait_s` the part of the wall time the loop spent
     on them or waited for them, and `loop_overhead_vs_mujoco` the rest of the wall time
     (the simulation around the rendering: sensors, the hand, the log rows) over MuJoCo
-    alone. Returns the figures and a note."""
+    alone. Returns the figures and a note; `show(line)`, if given, gets the table's heading
+    and then each scenario's line as soon as it is measured."""
     try:
         from virtmech import scenarios as vs
         from virtmech import sim as vsim
@@ -257,6 +259,9 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
         return [], "simulation not available (needs scenarios.names/load and sim.run)"
     out: list[dict[str, Any]] = []
     notes: list[str] = []
+    if show is not None:
+        for line in _simulation_head():
+            show(line)
     for name in scenarios if scenarios is not None else list(vs.names()):
         try:
             scenario = vs.load(name)
@@ -290,6 +295,8 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
                     "loop_overhead_vs_mujoco": (wall_s - control_s - wait_s) / mujoco_s,
                     "engine": result.info["physics"].get("engine", "python"),
                     "runs": repeats})
+        if show is not None:
+            show(_simulation_line(out[-1]))
     return out, "; ".join(notes)
 
 
@@ -367,20 +374,21 @@ NO_REFERENCE = ("NumPy column skipped: the NumPy reference cycle is not part of 
 def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CYCLES,
             numpy_cycles: int = DEFAULT_NUMPY_CYCLES, cases: list[str] | None = None,
             simulation: bool = True, cpu: int | None = None,
-            reference: Any = None) -> dict[str, Any]:
+            reference: Any = None, show: Any = None) -> dict[str, Any]:
     """Runs every measurement and returns the report (the --json object). `reference`: a
     NumPy reference cycle module (tests/reference's interface: case_models, NpController),
-    timed beside the core when given."""
+    timed beside the core when given. `show(line)`, if given, gets the lines of
+    `format_table` as their figures are measured: the machine and the headings first, then
+    each case's line (the harness runs case by case), each simulation scenario's, the
+    notes."""
     import virtmech as vm
+
+    def say(*lines: str) -> None:
+        for line in lines if show is not None else ():
+            show(line)
 
     names = list(cases) if cases else list(CASES)
     report: dict[str, Any] = {"virtmech_version": vm.__version__, "machine": machine()}
-    harness = run_harness(cycles, names, cpu)
-    report["machine"]["harness"] = harness["machine"]
-    report["cycles"] = harness["cycles"]
-    report["sizeof"] = harness["sizeof"]
-    report["allocation_counter"] = harness["allocation_counter"]
-    by_name = {c["name"]: c for c in harness["cases"]}
     numpy_note = "NumPy column skipped (--numpy-cycles 0)" if numpy_cycles <= 0 else ""
     if numpy_cycles <= 0:
         reference = None
@@ -388,7 +396,16 @@ def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CY
         numpy_note = NO_REFERENCE
     out_cases = []
     for name in names:
-        h = by_name[name]
+        harness = run_harness(cycles, [name], cpu)
+        if not out_cases:  # what the figures are measured on, from the first run
+            report["machine"]["harness"] = harness["machine"]
+            report["cycles"] = harness["cycles"]
+            report["sizeof"] = harness["sizeof"]
+            report["allocation_counter"] = harness["allocation_counter"]
+            say(*_head(report), *_case_head())
+        elif not harness["allocation_counter"].get("self_test_passed", True):
+            report["allocation_counter"]["self_test_passed"] = False
+        h = harness["cases"][0]
         case = make_case(name)
         py = python_step(case, python_cycles)
         row: dict[str, Any] = {
@@ -423,22 +440,25 @@ def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CY
                 "numpy_max_torque_difference": nb["torque_difference"],
             })
         out_cases.append(row)
+        say(_case_line(row))
     if numpy_note:
         report["numpy_note"] = numpy_note
     report["cases"] = out_cases
+    say(*_case_notes(report), "")
     if simulation:
-        report["simulation"], note = simulation_figures()
+        report["simulation"], note = simulation_figures(show=show)
     else:
         report["simulation"], note = [], "simulation skipped (--no-sim)"
     if note:
         report["simulation_note"] = note
+    say(*_simulation_notes(report))
     return report
 
 
-def format_table(r: dict[str, Any]) -> str:
-    """The report as a readable table."""
+def _head(r: dict[str, Any]) -> list[str]:
+    """What the figures were measured on."""
     m = r["machine"]
-    lines = [
+    return [
         f"virtmech {r['virtmech_version']} benchmark: {r['cycles']} C++ cycles per case",
         f"machine: {m['cpu']}, {m['logical_cpus']} logical CPUs, {m.get('platform', '')}, "
         f"Python {m.get('python')}, NumPy {m.get('numpy')}",
@@ -446,43 +466,95 @@ def format_table(r: dict[str, Any]) -> str:
         f"timer overhead {m['harness'].get('timer_overhead_ns')} ns (in the C++ figures)",
         "sizeof: " + ", ".join(f"{k} {v} B" for k, v in r["sizeof"].items()),
         "",
+    ]
+
+
+def _case_head() -> list[str]:
+    return [
         f"{'case':<21}{'median':>8}{'p99':>8}{'p99.9':>8}{'max':>8}{'allocs':>7}"
         f"{'NumPy':>10}{'speedup':>9}{'Python':>8}{'overhead':>9}",
         f"{'':<21}{'[us]':>8}{'[us]':>8}{'[us]':>8}{'[us]':>8}{'':>7}"
         f"{'[us]':>10}{'[x]':>9}{'[us]':>8}{'[us]':>9}",
     ]
-    for c in r["cases"]:
-        nm, sp = c["numpy_median_us"], c["speedup_vs_numpy"]
-        lines.append(
-            f"{c['name']:<21}{c['median_us']:>8.3f}{c['p99_us']:>8.3f}{c['p999_us']:>8.3f}"
-            f"{c['max_us']:>8.1f}{c['allocations']:>7d}"
-            f"{(f'{nm:.1f}' if nm is not None else '-'):>10}"
-            f"{(f'{sp:.0f}' if sp is not None else '-'):>9}{c['python_step_median_us']:>8.3f}"
-            f"{c['python_overhead_us']:>9.3f}")
+
+
+def _fit(x: float, width: int, decimals: int) -> str:
+    """x right-aligned in width with at least one space before it: fewer decimals where a
+    large value (a loaded machine's milliseconds) would run into the column before."""
+    text = f"{x:.{decimals}f}"
+    while len(text) >= width and decimals > 0:
+        decimals -= 1
+        text = f"{x:.{decimals}f}"
+    return f"{text:>{width}}"
+
+
+def _case_line(c: dict[str, Any]) -> str:
+    nm, sp = c["numpy_median_us"], c["speedup_vs_numpy"]
+    return (
+        f"{c['name']:<21}{_fit(c['median_us'], 8, 3)}{_fit(c['p99_us'], 8, 3)}"
+        f"{_fit(c['p999_us'], 8, 3)}{_fit(c['max_us'], 8, 1)}{c['allocations']:>7d}"
+        f"{(f'{nm:.1f}' if nm is not None else '-'):>10}"
+        f"{(f'{sp:.0f}' if sp is not None else '-'):>9}{c['python_step_median_us']:>8.3f}"
+        f"{c['python_overhead_us']:>9.3f}"
+    )
+
+
+#: what the cases' `max` column measures
+MAX_NOTE = (
+    "(max: the slowest single cycle of the {cycles} timed, wall clock: where the process is "
+    "not scheduled in real time it includes the operating system preempting it, often "
+    "milliseconds, which the cycle's own work never takes; p99.9 is the cycle's cost)"
+)
+
+
+def _case_notes(r: dict[str, Any]) -> list[str]:
+    lines = [MAX_NOTE.format(cycles=r.get("cycles", "?"))]
     if r.get("numpy_note"):
         lines.append(r["numpy_note"])
-    lines.append("")
-    if r["simulation"]:
-        lines.append(f"{'simulation scenario':<28}{'real-time factor':>18}{'vs MuJoCo alone':>17}"
-                     f"{'controller':>12}{'derived':>10}{'rest vs MuJoCo':>16}")
-        lines.append(f"{'':<28}{'':>18}{'':>17}{'[us/cycle]':>12}{'[%]':>10}{'':>16}")
-        for s in r["simulation"]:
-            lines.append(
-                f"{s['scenario']:<28}{s['realtime_factor']:>17.1f}x"
-                f"{s['overhead_vs_mujoco']:>16.2f}x"
-                f"{s['control_us_per_cycle']:>12.2f}"
-                f"{100 * s['derived_wait_s'] / s['wall_time_s']:>10.0f}"
-                f"{s['loop_overhead_vs_mujoco']:>15.2f}x"
-            )
-        lines.append("(vs MuJoCo alone: the loop's wall time over MuJoCo's for the same steps; "
-                     "controller: the rendering's own time per cycle; derived: the share of the "
-                     "wall time the loop spent on or waited for the log's derived columns "
-                     "(distances from a shape, computed on a second thread alongside the "
-                     "loop); rest vs MuJoCo: "
-                     "the wall time without those two over MuJoCo's)")
+    return lines
+
+
+def _simulation_head() -> list[str]:
+    return [
+        f"{'simulation scenario':<28}{'real-time factor':>18}{'vs MuJoCo alone':>17}"
+        f"{'controller':>12}{'derived':>10}{'rest vs MuJoCo':>16}",
+        f"{'':<28}{'':>18}{'':>17}{'[us/cycle]':>12}{'[%]':>10}{'':>16}",
+    ]
+
+
+def _simulation_line(s: dict[str, Any]) -> str:
+    return (
+        f"{s['scenario']:<28}{s['realtime_factor']:>17.1f}x"
+        f"{s['overhead_vs_mujoco']:>16.2f}x"
+        f"{s['control_us_per_cycle']:>12.2f}"
+        f"{100 * s['derived_wait_s'] / s['wall_time_s']:>10.0f}"
+        f"{s['loop_overhead_vs_mujoco']:>15.2f}x"
+    )
+
+
+#: what the simulation table's columns are
+SIMULATION_NOTE = (
+    "(vs MuJoCo alone: the loop's wall time over MuJoCo's for the same steps; controller: the "
+    "rendering's own time per cycle; derived: the share of the wall time the loop spent on or "
+    "waited for the log's derived columns (distances from a shape, computed on a second "
+    "thread alongside the loop); rest vs MuJoCo: the wall time without those two over "
+    "MuJoCo's)"
+)
+
+
+def _simulation_notes(r: dict[str, Any]) -> list[str]:
+    lines = [SIMULATION_NOTE] if r["simulation"] else []
     if r.get("simulation_note"):
         lines.append(f"simulation: {r['simulation_note']}")
-    return "\n".join(lines)
+    return lines
+
+
+def format_table(r: dict[str, Any]) -> str:
+    """The report as a readable table (the lines `collect(show=...)` gives as it goes)."""
+    lines = [*_head(r), *_case_head(), *map(_case_line, r["cases"]), *_case_notes(r), ""]
+    if r["simulation"]:
+        lines += [*_simulation_head(), *map(_simulation_line, r["simulation"])]
+    return "\n".join(lines + _simulation_notes(r))
 
 
 def main(argv: list[str], reference: Any = None) -> int:
@@ -506,13 +578,21 @@ def main(argv: list[str], reference: Any = None) -> int:
     for opt in ("cycles", "python_cycles"):
         if getattr(a, opt) < 1:
             p.error(f"--{opt.replace('_', '-')}: expected >= 1, got {getattr(a, opt)}")
+    # the table's lines as their figures are measured: on stdout, or with --json (one JSON
+    # object on stdout at the end) on stderr
+    stream = sys.stderr if a.json else sys.stdout
+
+    def show(line: str) -> None:
+        print(line, file=stream, flush=True)
+
     try:
         r = collect(a.cycles, a.python_cycles, a.numpy_cycles, a.case, not a.no_sim, a.cpu,
-                    reference=reference)
+                    reference=reference, show=show)
     except (FileNotFoundError, RuntimeError) as exc:
         print(f"virtmech bench: {exc}", file=sys.stderr)
         return 1
-    print(json.dumps(r, indent=2) if a.json else format_table(r))
+    if a.json:
+        print(json.dumps(r, indent=2))
     return 0
 
 

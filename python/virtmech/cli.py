@@ -94,11 +94,13 @@ def _run_one(scenario, out_dir, seed, progress: bool, fmt: str = "csv", chunk_s=
 def cmd_scenarios(args) -> int:
     from . import scenarios as sc
 
-    for name in sc.names():
+    names = sc.names()  # the paper's figures first, fig9 before fig10
+    w = max(map(len, names))
+    for name in names:
         s = sc.load(name)
         first = " ".join(s.data["description"].split())
         first = first.split(": ", 1)[0]
-        print(f"{name:<16} {s.duration_s:5.1f} s  {first}")
+        print(f"{name:<{w}}  {s.duration_s:5.1f} s  {first}")
     return 0
 
 
@@ -164,8 +166,13 @@ def cmd_run(args) -> int:
     out = Path(args.out) if args.out else Path("out") / s.name
     t0 = time.perf_counter()
     m = _run_one(s, out, args.seed, not args.quiet, args.format)
+    from .viz.figures import SHAPED
+
+    figures = "plane.png, time.png" + (
+        ", scene.png" if s.data["mechanism"]["type"] in SHAPED else ""
+    )
     print(
-        f"{s.name}: wrote {out}/log.{args.format}, run.json, plane.png, time.png "
+        f"{s.name}: wrote {out}/log.{args.format}, run.json, {figures} "
         f"({time.perf_counter() - t0:.2f} s wall)"
     )
     _print_metrics({s.name: m})
@@ -240,32 +247,63 @@ def cmd_quality(args) -> int:
     return 0
 
 
+#: the summary table's columns: metric (virtmech.sim.output.METRICS), heading on two lines
+#: (what, then the unit), width, format, scale from the metric's SI unit
+SUMMARY_COLUMNS = (
+    ("time_to_1mm_s", "to 1 mm", "[s]", 8, ".3f", 1.0),
+    ("dist_max_after_m", "max after", "[mm]", 10, ".3f", 1e3),
+    ("force_max_n", "max |f|", "[N]", 8, ".2f", 1.0),
+    ("torque_fraction_max", "max tau", "/ limit", 8, ".2f", 1.0),
+    ("passive_torque_max", "tau unpowered", "[N·m]", 14, ".2g", 1.0),
+    ("energy_to_user_j", "work on user", "[mJ]", 13, ".2f", 1e3),
+    ("real_time_factor", "x real", "time", 7, ".1f", 1.0),
+)
+
+#: what the summary table's columns say, printed under it
+SUMMARY_NOTES = """\
+to 1 mm: time_to_1mm_s; max after: dist_max_after_m; max |f|: force_max_n; max tau / limit:
+torque_fraction_max; tau unpowered: passive_torque_max, the largest torque on a joint without
+a motor (the Omni's gimbal), 0 as eq. 8 requires; work on user: energy_to_user_j, > 0 where
+the device gave the user energy (the energy tank, on in omni-fig11-passive, keeps it near 0).
+Definitions: docs/scenarios.md, "Distances and metrics"; every metric: run.json, summary.json"""
+
+
 def _print_metrics(runs: dict) -> None:
+    """The runs' headline metrics as a table in the paper's figure order, then what its
+    columns say."""
+    from .scenarios import paper_order
+
     w = max([16, *map(len, runs)])  # the names' column
-    print(
-        f"{'scenario':<{w}} {'to 1 mm [s]':>11} {'max after [mm]':>14} {'max |f| [N]':>11} "
-        f"{'tau/limit':>9} {'passive':>8} {'E [mJ]':>8} {'x real':>7}"
-    )
-    from .sim.output import paper_order
+    head = [f"{'scenario':<{w}}", f"{'':<{w}}"]
+    for _, what, unit, width, _, _ in SUMMARY_COLUMNS:
+        head[0] += f" {what:>{width}}"
+        head[1] += f" {unit:>{width}}"
+    print(head[0])
+    print(head[1])
+    missing: dict[str, list[str]] = {}  # name -> why its n/a cells do not apply
 
-    missing = []
-
-    def cell(v, width: int, fmt: str, scale: float = 1.0) -> str:
+    def cell(name: str, key: str, width: int, fmt: str, scale: float = 1.0) -> str:
+        v = runs[name][key]
         if v is None or v != v:  # None or NaN: the metric does not apply to the run
-            missing.append(v)
+            why = (runs[name].get("notes") or {}).get(key, "")
+            if why not in missing.setdefault(name, []):
+                missing[name].append(why)
             return f"{'n/a':>{width}}"
-        return f"{v * scale:{width}{fmt}}"
+        text = f"{v * scale:{width}{fmt}}"
+        return text.replace("-", " ") if float(text) == 0.0 else text  # no "-0.00"
 
     for name in paper_order(runs):
-        m = runs[name]
         print(
-            f"{name:<{w}} {cell(m['time_to_1mm_s'], 11, '.3f')} "
-            f"{cell(m['dist_max_after_m'], 14, '.3f', 1e3)} {cell(m['force_max_n'], 11, '.2f')} "
-            f"{cell(m['torque_fraction_max'], 9, '.2f')} {cell(m['passive_torque_max'], 8, '.2g')} "
-            f"{cell(m['energy_to_user_j'], 8, '.2f', 1e3)} {cell(m['real_time_factor'], 7, '.1f')}"
+            f"{name:<{w}}"
+            + "".join(
+                f" {cell(name, key, width, fmt, scale)}"
+                for key, _, _, width, fmt, scale in SUMMARY_COLUMNS
+            )
         )
-    if missing:
-        print("n/a: the metric does not apply to that run (its run.json says why)")
+    for name, whys in missing.items():
+        for why in whys:  # the run's notes (run.json), else the general reason
+            print(f"{name}: {why or 'n/a: the metric does not apply to that run'}")
+    print(SUMMARY_NOTES)
 
 
 def cmd_demo(args) -> int:

@@ -72,12 +72,14 @@ def run_tasks(
     backend: str = "process",
     address: str | None = None,
     capture: bool = False,
+    isolate: bool = False,
     preload: Sequence[str] = (),
     on_done: Callable[[], None] | None = None,
 ) -> list[Any]:
     """[fn(item) for item in items], in the items' order. backend "process": in this
-    process when workers <= 1 (or one item), else in a pool of min(workers, items)
-    processes (workers None: the machine's cores); "ray": Ray tasks (one CPU each, at most
+    process when workers <= 1 (or one item) unless `isolate` (then a pool of one: a task
+    that crashes its process does not end the caller's), else in a pool of min(workers,
+    items) processes (workers None: the machine's cores); "ray": Ray tasks (one CPU each, at most
     `workers` at once), on the Ray this process has initialised, else ray.init(address)
     (a local Ray when None), shut down again at the end. capture: a task that raises (or
     whose worker dies) gives a TaskFailure instead of raising. on_done() after each task."""
@@ -86,9 +88,9 @@ def run_tasks(
     if backend == "ray":
         return _run_ray(fn, items, workers, address, capture, on_done)
     n = (os.cpu_count() or 1) if workers is None else int(workers)
-    if n <= 1 or len(items) <= 1:
+    if not isolate and (n <= 1 or len(items) <= 1):
         return [_call(fn, item, capture, on_done) for item in items]
-    return _run_process(fn, items, min(n, len(items)), capture, preload, on_done)
+    return _run_process(fn, items, max(1, min(n, len(items))), capture, preload, on_done)
 
 
 def _call(fn, item, capture: bool, on_done):

@@ -21,12 +21,11 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .errors import UserError
-from .pool import BACKENDS, CLUSTER_HINT, TaskFailure, require_ray, run_tasks
+from .pool import BACKENDS, TaskFailure, require_ray, run_tasks
 from .runner import run_point
 from .scenarios.overrides import value_text
 
@@ -132,25 +131,17 @@ def _require_pyarrow():
         import pyarrow as pa
     except ImportError:
         raise UserError(
-            "virtmech sweep: the table needs pyarrow, which is not installed; install it with: "
-            "pip install 'virtmech[parquet]' (or " + CLUSTER_HINT + ")"
+            "virtmech sweep: the table needs pyarrow, which is not installed; the [sim] extra "
+            "brings it: pip install 'virtmech[sim]' (or pip install pyarrow)"
         ) from None
     return pa
 
 
 def _bar(total: int, label: str, enabled: bool):
-    from tqdm import tqdm
+    from .progress import bar
 
-    return tqdm(
-        total=total,
-        desc=label,
-        unit="run",
-        file=sys.stderr,
-        ascii=" #",
-        ncols=80,
-        disable=not enabled,
-        mininterval=0.2 if sys.stderr.isatty() else 5.0,
-    )
+    return bar(total, label, "{n:.0f}/{total:.0f} runs", enabled, unit="run", ascii=" #",
+               ncols=80)
 
 
 def _run(scenarios: list, backend: str, workers: int | None, address: str | None, bar):
@@ -163,6 +154,7 @@ def _run(scenarios: list, backend: str, workers: int | None, address: str | None
         backend=backend,
         address=address,
         capture=True,
+        isolate=True,
         preload=["virtmech.runner", "virtmech.sim.run_loop", "virtmech.sim.output"],
         on_done=lambda: bar.update(1),
     )

@@ -114,6 +114,43 @@ def test_main_prints_a_table(capsys):
     assert "NumPy column skipped" in text
 
 
+def test_each_cases_line_is_shown_as_soon_as_it_is_measured(monkeypatch):
+    events = []
+    measure = bench.python_step
+
+    def python_step(case, cycles):
+        events.append(("measure", case.name))
+        return measure(case, cycles)
+
+    monkeypatch.setattr(bench, "python_step", python_step)
+    names = ["omni+probe", "planar3r+planar_arm"]
+    r = bench.collect(cycles=500, python_cycles=20, numpy_cycles=0, simulation=False,
+                      cases=names, show=lambda line: events.append(("line", line)))
+    shown = {n: next(i for i, (k, v) in enumerate(events) if k == "line" and v.startswith(n))
+             for n in names}
+    measured = {n: events.index(("measure", n)) for n in names}
+    heading = next(i for i, (k, v) in enumerate(events) if k == "line" and "median" in v)
+    assert heading < measured[names[0]] < shown[names[0]] < measured[names[1]] < shown[names[1]]
+    lines = [v for k, v in events if k == "line"]
+    assert "\n".join(lines) == bench.format_table(r)  # the same table, line by line
+
+
+def test_the_table_says_what_its_max_column_measures(capsys):
+    assert bench.main(["--cycles", "500", "--python-cycles", "20", "--numpy-cycles", "0",
+                       "--case", "omni+probe", "--no-sim"]) == 0
+    text = capsys.readouterr().out
+    assert "(max: the slowest single cycle of the 500 timed" in text
+    assert "preempting" in text and "p99.9 is the cycle's cost" in text
+
+
+def test_with_json_the_lines_go_to_stderr_and_the_object_to_stdout(capsys):
+    assert bench.main(["--json", "--cycles", "500", "--python-cycles", "20",
+                       "--numpy-cycles", "0", "--case", "omni+probe", "--no-sim"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["cases"][0]["name"] == "omni+probe"
+    assert any(line.startswith("omni+probe") for line in err.splitlines())
+
+
 def test_main_rejects_a_bad_cycle_count():
     with pytest.raises(SystemExit):
         bench.main(["--cycles", "0"])

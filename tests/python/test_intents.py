@@ -451,3 +451,18 @@ def test_after_a_release_the_handle_moves_as_on_a_model_built_without_the_hand()
             mujoco.mj_step(m, d)
         np.testing.assert_allclose(np.linalg.solve(C, d.qpos - c0), q[k + 1], atol=1e-9)
     assert np.ptp(q[k0 : k0 + 100, 0]) > 1e-3  # it moved
+
+
+def test_a_push_the_physics_cannot_integrate_ends_the_run_with_a_clear_error(tmp_path):
+    # a hand pushing with 1e6 N: MuJoCo's state diverges and is reset; the run stops with a
+    # message naming the scenario and when, instead of logging the reset state
+    from virtmech.sim.run_loop import SimulationUnstable
+
+    s = load("omni-fig10").with_keys({"intent.0.force": [1e6, 0.0, 0.0]})
+    with pytest.raises(SimulationUnstable, match=r"unstable between t = 0\.000 and 1\.000 s"):
+        run(s.with_overrides(duration_s=1.5))
+    from virtmech.cli import main
+
+    out = tmp_path / "o"
+    assert main(["run", "omni-fig10", "--set", "intent.0.force=[1e6,0,0]", "--out", str(out),
+                 "--quiet", "--duration", "0.5"]) == 2

@@ -27,29 +27,56 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import UserError
 from .log import CHUNK_S, DERIVE_TAIL_CYCLES, SimResult, log_store
 
-__all__ = ["Progress", "run"]
+__all__ = ["Progress", "SimulationUnstable", "check_stable", "run"]
+
+
+class SimulationUnstable(UserError):
+    """MuJoCo found the state diverging (NaN, Inf or a huge acceleration, position or
+    velocity) and reset it: what follows would not be the scenario's physics."""
+
+
+def check_stable(scenario, sim, t0: float, t1: float) -> None:
+    """Raises SimulationUnstable, naming the scenario's file and the stretch of simulated
+    time [t0, t1] just run, where MuJoCo has warned that the simulation diverged (`sim`: the
+    rig's SimModel)."""
+    import mujoco
+
+    w = mujoco.mjtWarning
+    bad = {w.mjWARN_BADQACC: "acceleration", w.mjWARN_BADQVEL: "velocity",
+           w.mjWARN_BADQPOS: "position"}
+    for kind, what in bad.items():
+        info = sim.data.warning[int(kind)]
+        if info.number > 0:
+            raise SimulationUnstable(
+                f"{scenario.source}: the simulation became unstable between t = {t0:.3f} and "
+                f"{t1:.3f} s (MuJoCo: NaN, Inf or a huge {what} at degree of freedom "
+                f"{info.lastinfo}): "
+                "the scenario drives the device harder than its physics can integrate; "
+                "expected the intent's forces and moments and the hand's gains of a hand "
+                "holding a stylus (a few newtons), or a higher physics.rate_hz"
+            )
 
 
 class Progress:
-    """A progress bar on stderr (tqdm) in simulated seconds, then one line with the
-    scenario's simulated and wall time."""
+    """Progress on stderr in simulated seconds (virtmech.progress: a bar on a terminal,
+    whole lines elsewhere), then one line with the scenario's simulated and wall time."""
 
     def __init__(self, label: str, total: float, enabled: bool):
+        from ..progress import bar
+
         self.label, self.total, self.enabled = label, float(total), enabled
         self.bar = None
         self.wall0 = time.perf_counter()
         if enabled:
-            from tqdm import tqdm
-
-            self.bar = tqdm(
-                total=self.total,
-                desc=f"{label:<16}",
-                file=sys.stderr,
+            self.bar = bar(
+                self.total,
+                f"{label:<16}",
+                "{n:.2f}/{total:.2f} s",
                 ascii=" #",
                 ncols=80,
-                mininterval=0.2 if sys.stderr.isatty() else 5.0,
                 bar_format="{desc} [{bar}] {percentage:3.0f}%  {n:.2f}/{total:.2f} s",
             )
 
@@ -209,6 +236,7 @@ class _Run:
                 if underived is not None:
                     pending.append(worker.submit(self.derive, underived))
                 self.servo.run(k0, plan, noise, dropout, self.buf[k0 - b0 : k1 - b0])
+                check_stable(self.rig.scenario, self.rig.sim, k0 * self.T, k1 * self.T)
                 underived = self.buf[k0 - b0 : k1 - b0]
                 if k1 - b0 == self.block or k1 == self.N:
                     self.end_block(b0, k1, underived, pending)

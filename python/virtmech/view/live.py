@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..sim.human import PLAN_COLUMNS, PLAN_INDEX, plan_slice
+from ..sim.run_loop import check_stable
 from ..sim.sensors import SensorSettings
 
 #: the controller laws the viewer offers (scenario key controller.law)
@@ -245,6 +246,7 @@ class LiveSim:
         dropout = np.zeros(n)
         rows = np.empty((n, len(self.columns)))
         self.servo.run(self.k, plan, noise, dropout, rows)
+        check_stable(self.scenario, self.rig.sim, self.k * self.T, (self.k + n) * self.T)
         self.post(rows)
         self.k += n
         c = self.col
