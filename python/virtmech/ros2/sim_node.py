@@ -49,6 +49,7 @@ class SimDevice:
 
     def __init__(self, rig, duration_s: float):
         from .. import _sim
+        from ..sim.run_loop import StretchInputs
 
         self.rig = rig
         self.T = rig.period_s
@@ -56,10 +57,8 @@ class SimDevice:
         self.N = int(round(duration_s / self.T)) + 1
         self.held = _sim.HeldTorque(rig.device)
         self.servo = rig.servo_loop(renderer=self.held)
-        self.intent = rig.intent()
-        self.rng = np.random.default_rng(rig.seed)
-        self.dropout_rng = np.random.default_rng(np.random.SeedSequence(rig.seed).spawn(1)[0])
-        starts = set(self.intent.start_cycles(self.N))
+        self.inputs = StretchInputs(rig)
+        starts = set(self.inputs.intent.start_cycles(self.N))
         cuts = sorted(starts | set(range(0, self.N, self.STRETCH)) | {self.N})
         self.stretches = list(zip(cuts[:-1], cuts[1:]))
         self.log = np.zeros((self.N, len(rig.columns)))
@@ -74,21 +73,15 @@ class SimDevice:
         return self.rig.device.forward(cp.Cinv @ (sim.data.qpos - cp.c0))
 
     def _prepare(self, i: int) -> None:
+        """Stretch i's inputs, once the stretch before has run (checked stable)."""
+        from ..sim.run_loop import check_stable
+
         k0, k1 = self.stretches[i]
-        s = self.rig.sensors
-        rows = k1 - k0
-        plan = self.intent.plan(k0, k1, self._handle_pose())
-        noise = (
-            self.rng.normal(0.0, s.noise_rad, (rows, self.n))
-            if s.noise_rad > 0.0
-            else np.zeros((rows, self.n))
-        )
-        dropout = (
-            (self.dropout_rng.random(rows) < s.dropout_probability).astype(float)
-            if s.dropout_probability > 0.0
-            else np.zeros(rows)
-        )
-        self._stretch, self._inputs = i, (k0, plan, noise, dropout)
+        if i > 0:
+            check_stable(self.rig.scenario, self.rig.sim, self.stretches[i - 1][0] * self.T,
+                         k0 * self.T)
+        self._stretch = i
+        self._inputs = (k0, *self.inputs(k0, k1, self._handle_pose()))
 
     @property
     def done(self) -> bool:
@@ -115,7 +108,11 @@ class SimDevice:
     def result(self, wall_s: float, info: dict):
         """The run as `virtmech run` describes it (the log's derived columns filled)."""
         from ..sim.log import SimResult
+        from ..sim.run_loop import check_stable
 
+        if self._stretch >= 0:
+            k0 = self.stretches[self._stretch][0]
+            check_stable(self.rig.scenario, self.rig.sim, k0 * self.T, self.k * self.T)
         log = self.log[: self.k]
         self.rig.derived_columns()(log)
         return SimResult(
@@ -139,6 +136,7 @@ class Exchange:
     wrench: np.ndarray | None = None  # or its handle wrench (force_feedback)
     stamp: int = -1  # the latest command's stamp [ns]
     received: int = 0
+    ignored: int = 0  # lockstep: commands answering no joint state of this run (stale zeros)
     sent: dict = field(default_factory=dict)  # stamp [ns] -> wall time it was published [s]
     round_trips: list = field(default_factory=list)  # [s]
 
@@ -150,7 +148,7 @@ class SimNode:
     """The node: joint_states out, the chosen command topic in."""
 
     def __init__(self, session: Session, rig, device: SimDevice, command: str,
-                 velocity: bool, name: str = "virtmech_sim"):
+                 velocity: bool, lockstep: bool, name: str = "virtmech_sim"):
         from geometry_msgs.msg import WrenchStamped
         from rclpy.node import Node
         from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -164,7 +162,7 @@ class SimNode:
         except ValueError as e:
             raise UserError(*str(e).split("\n")) from None
         self.map, self.settings, self.device = jmap, settings, device
-        self.command, self.velocity = command, velocity
+        self.command, self.velocity, self.lockstep = command, velocity, lockstep
         self.effort_joints = jmap.effort_joints(rig.device.actuated)
         self.act = np.asarray(rig.device.actuated, dtype=bool)
         self.wrench = HandleWrench(rig.device, settings.force_rotation)
@@ -184,6 +182,7 @@ class SimNode:
         self.sub = self.node.create_subscription(msg_type, command, callback, reliable)
         self.logger = self.node.get_logger()
         self.rejected = 0
+        self.resent = 0  # lockstep: joint states sent again
 
     # -- commands in (executor thread) ---------------------------------------------------
 
@@ -191,12 +190,17 @@ class SimNode:
         ns = stamp_ns(stamp) if stamp is not None else -1
         now = time.perf_counter()
         with self.ex.lock:
-            self.ex.torque, self.ex.wrench = torque, wrench
-            self.ex.stamp = ns
-            self.ex.received += 1
             sent = self.ex.sent.pop(ns, None)
             if sent is not None:
                 self.ex.round_trips.append(now - sent)
+            elif self.lockstep and stamp is not None:
+                # lockstep: the device runs slower than the wall clock, the node's watchdog may
+                # send a zero command of its own: only the answers to the joint states count
+                self.ex.ignored += 1
+                return
+            self.ex.torque, self.ex.wrench = torque, wrench
+            self.ex.stamp = ns
+            self.ex.received += 1
             self.ex.arrived.notify_all()
 
     def on_joint_command(self, msg) -> None:
@@ -252,22 +256,32 @@ class SimNode:
         self.pub.publish(m)
         return received
 
+    #: lockstep: a joint state not answered within this is sent again (best-effort readers
+    #: may lose a sample) [s]
+    RESEND_S = 0.05
+
     def wait_answer(self, stamp_ns_: int, received: int, timeout_s: float) -> bool:
         """Waits for a command stamped `stamp_ns_` (effort_commands carry no stamp: the first
-        command after the `received`-th); False after timeout_s."""
+        command after the `received`-th), sending the joint state again every RESEND_S;
+        False after timeout_s."""
         end = time.monotonic() + timeout_s
-        start = received
-        with self.ex.lock:
-            while True:
-                if self.command == "effort_commands":
-                    if self.ex.received > start:
+        while True:
+            resend = min(end, time.monotonic() + self.RESEND_S)
+            with self.ex.lock:
+                while True:
+                    if self.command == "effort_commands":
+                        if self.ex.received > received:
+                            return True
+                    elif self.ex.stamp == stamp_ns_:
                         return True
-                elif self.ex.stamp == stamp_ns_:
-                    return True
-                left = end - time.monotonic()
-                if left <= 0:
-                    return False
-                self.ex.arrived.wait(left)
+                    left = resend - time.monotonic()
+                    if left <= 0:
+                        break
+                    self.ex.arrived.wait(left)
+            if time.monotonic() >= end:
+                return False
+            self.resent += 1
+            self.pub.publish(self.msg)
 
 
 def _percentile_ms(values: list, p: float) -> float:
@@ -342,7 +356,7 @@ def run(
     duration = rig.scenario.duration_s if duration_s is None else duration_s
     device = SimDevice(rig, duration)
     with Session("ros2-sim", ros_args) as session:
-        node = SimNode(session, rig, device, command, velocity)
+        node = SimNode(session, rig, device, command, velocity, lockstep)
         executor = session.executor(node.node)
         # the rendering node first: the run starts once the command topic has a publisher
         how = session.spin(
@@ -374,6 +388,8 @@ def run(
         "cycles": device.k,
         "commands_received": node.ex.received,
         "commands_rejected": node.rejected,
+        "commands_ignored": node.ex.ignored,
+        "joint_states_resent": node.resent,
         "lockstep_missed": stepper.missed,
         "realtime_behind": stepper.behind,
         "round_trip_median_ms": _percentile_ms(rt, 50),
@@ -389,7 +405,12 @@ def run(
         f"virtmech ros2-sim: {rig.scenario.name}: {device.k} cycles in {stepper.wall_s:.2f} s "
         f"wall ({'lockstep' if lockstep else 'real time'}, commands on {command}: "
         f"{node.ex.received} received, {node.rejected} rejected"
-        + (f", {stepper.missed} missed" if lockstep else f", {stepper.behind} cycles behind")
+        + (
+            f", {node.ex.ignored} ignored, {stepper.missed} missed, {node.resent} joint states "
+            "sent again"
+            if lockstep
+            else f", {stepper.behind} cycles behind"
+        )
         + f"); round trip median {ros['round_trip_median_ms']:.3f} ms, p99 "
         f"{ros['round_trip_p99_ms']:.3f} ms; dist max {m['dist_max_m'] * 1e3:.3f} mm"
         + (f"; wrote {out}/log.csv, run.json" if out is not None else "")
