@@ -77,6 +77,11 @@ ServoLoop::ServoLoop(const Device& device, ExternalController& controller, mjMod
     : external_(&controller), device_(&device), m_(model), d_(data), s_(std::move(settings)),
       plan_(plan), log_(log) {
   init();
+  // the controller's columns an external controller leaves: zero in every row
+  for (Vector6* v : {&out_.wrench, &out_.wrench_null, &out_.wrench_range, &out_.wrench_unrendered,
+                     &out_.error, &out_.error_dot, &out_.error_star, &out_.error_star_dot}) {
+    v->setZero();
+  }
 }
 
 void ServoLoop::init() {

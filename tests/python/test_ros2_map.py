@@ -111,11 +111,14 @@ def test_touch_map_against_the_urdf_chain():
         r[2] += ELBOW_URDF_OFFSET
         P_urdf.append(urdf_gimbal_centre(r))
         P_vm.append(omni.forward(q)[:3, 3])
-    R, _, residual = kabsch(np.array(P_urdf), np.array(P_vm))
+    R, t, residual = kabsch(np.array(P_urdf), np.array(P_vm))
     assert residual < 1e-12
     assert np.linalg.det(R) == pytest.approx(1.0)
-    # the URDF's base: z up (OpenHaptics' y), y toward the user (OpenHaptics' z)
+    # the URDF's base: z up (OpenHaptics' y), y toward the user (OpenHaptics' z): roll pi/2
+    # then yaw pi, virtmech's origin at (0, 0.134, -0.0075) m (docs/ros2.md, "RViz")
     np.testing.assert_allclose(R, [[-1, 0, 0], [0, 0, 1], [0, 1, 0]], atol=1e-12)
+    np.testing.assert_allclose(R, _rpy(math.pi / 2, 0.0, math.pi), atol=1e-12)
+    np.testing.assert_allclose(t, [0.0, 0.134, -0.0075], atol=1e-12)
 
 
 def test_touch_efforts_do_the_work_of_the_device_torques():

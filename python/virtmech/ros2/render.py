@@ -171,6 +171,10 @@ def settings_from_parameters(values: dict, device) -> tuple[Settings, JointMap]:
     return s, jmap
 
 
+def _lstsq(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
 class VelocityEstimate:
     """The backward difference through a first-order low-pass of cut-off f_c, as the
     simulation's sensors (sim.sensors.SensorSettings.velocity_alpha), at the gap dt between
@@ -198,13 +202,16 @@ class VelocityEstimate:
 class HandleWrench:
     """The wrench at the handle whose joint torques J^T w are the command's on the actuated
     joints: a force alone where the force's Jacobian columns of the actuated joints have full
-    rank (the Touch: three motors, the gimbal centre's force), else the least-squares wrench
-    of smallest norm; then in the output's axes."""
+    rank at the device's home pose (the Touch: three motors, the gimbal centre's force; the
+    least-squares force near a singular pose), else the least-squares wrench of smallest
+    norm; then in the output's axes."""
 
     def __init__(self, device, rotation: np.ndarray):
         self.device = device
         self.act = np.flatnonzero(np.asarray(device.actuated, dtype=bool))
         self.R = np.asarray(rotation, dtype=float)
+        J = np.asarray(device.jacobian(device.home))[:, self.act]
+        self.force_only = np.linalg.matrix_rank(J[:3]) == self.act.size
 
     def __call__(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
         w = np.zeros(6)
@@ -212,12 +219,17 @@ class HandleWrench:
             return w
         Ja = np.asarray(self.device.jacobian(q))[:, self.act]
         ta = np.asarray(tau, dtype=float)[self.act]
-        Jf = Ja[:3]
-        if np.linalg.matrix_rank(Jf) == self.act.size:
-            w[:3] = np.linalg.lstsq(Jf.T, ta, rcond=None)[0]
+        if self.force_only:
+            A = Ja[:3].T
+            try:
+                w[:3] = np.linalg.solve(A, ta) if A.shape[0] == 3 else _lstsq(A, ta)
+            except np.linalg.LinAlgError:  # a singular pose
+                w[:3] = _lstsq(A, ta)
         else:
-            w[:] = np.linalg.lstsq(Ja.T, ta, rcond=None)[0]
-        return np.concatenate([self.R @ w[:3], self.R @ w[3:]])
+            w[:] = _lstsq(Ja.T, ta)
+        out = np.empty(6)
+        out[:3], out[3:] = self.R @ w[:3], self.R @ w[3:]
+        return out
 
     def torques(self, q: np.ndarray, w_out: np.ndarray) -> np.ndarray:
         """The joint torques J^T w of a wrench in the output's axes, on the actuated joints
