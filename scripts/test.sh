@@ -43,7 +43,7 @@ example() {  # an example's title and column headings, then its last rows
   echo "     ..."
   tail -n 3 <<<"$out"
 }
-example build/cpp/examples/01_omni_loop_c
+example build/cpp/examples/01_omni_loop_c build/cpp/tests/standin/libHD.so  # an HD program, on the stand-in
 example build/cpp/examples/01_omni_loop_cpp
 example build/cpp/examples/02_custom_mechanism_cpp
 example build/cpp/examples/surface_probe_c

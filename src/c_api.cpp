@@ -8,6 +8,7 @@
 #include <new>
 #include <string>
 
+#include "c_api_handles.hpp"
 #include "virtmech/params.hpp"
 #include "virtmech/validate.hpp"
 #include "virtmech/virtmech.hpp"
@@ -663,3 +664,9 @@ void vm_mechanism_set_diagnostics(const vm_mechanism_set* set, vm_set_diagnostic
 const char* vm_version(void) { return VIRTMECH_VERSION_STRING; }
 
 }  // extern "C"
+
+// the C++ objects behind the handles (c_api_handles.hpp)
+Controller& virtmech::detail::controller_of(vm_controller* controller) noexcept {
+  return controller->controller;
+}
+MechanismSet& virtmech::detail::set_of(vm_mechanism_set* set) noexcept { return set->set; }

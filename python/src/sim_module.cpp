@@ -7,16 +7,19 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/pair.h>
+#include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include "virtmech/sim/servo_loop.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
+using virtmech::Device;
 using namespace virtmech::sim;
 
 namespace {
@@ -45,12 +48,32 @@ void require_rows(const char* name, size_t ndim, size_t rows, size_t got_rows, s
   }
 }
 
+// A simulated device driven from outside the simulation (virtmech ros2-sim): the loop's
+// external controller applies the joint torques the caller set last, held.
+struct HeldTorque final : ExternalController {
+  explicit HeldTorque(std::shared_ptr<Device> d)
+      : device_ptr(std::move(d)), torque(Eigen::VectorXd::Zero(device_ptr->dof())) {}
+  void control(double, const double*, const double*, double* tau) override {
+    for (Eigen::Index i = 0; i < torque.size(); ++i) tau[i] = torque[i];
+  }
+  const Device& device() const { return *device_ptr; }
+  std::shared_ptr<Device> device_ptr;
+  Eigen::VectorXd torque;
+};
+
 struct PyServoLoop {
   template <typename Renderer>  // a Controller or a MechanismSet
   PyServoLoop(Renderer& renderer, std::uintptr_t model, std::uintptr_t data,
               const LoopSettings& settings, const nb::dict& plan, const nb::dict& log)
       : loop(renderer, reinterpret_cast<mjModel*>(model), reinterpret_cast<mjData*>(data),
              settings, layout_from<PlanLayout>("plan_layout", plan),
+             layout_from<LogLayout>("log_layout", log)) {}
+
+  PyServoLoop(HeldTorque& held, std::uintptr_t model, std::uintptr_t data,
+              const LoopSettings& settings, const nb::dict& plan, const nb::dict& log)
+      : loop(held.device(), held, reinterpret_cast<mjModel*>(model),
+             reinterpret_cast<mjData*>(data), settings,
+             layout_from<PlanLayout>("plan_layout", plan),
              layout_from<LogLayout>("log_layout", log)) {}
 
   void run(long k0, CF64 plan, CF64 noise, CF64 dropout, F64 log) {
@@ -121,8 +144,24 @@ NB_MODULE(_sim, m) {
       .def_rw("velocity_alpha", &LoopSettings::velocity_alpha, "Velocity low-pass: dqf += alpha (diff - dqf).")
       .def_rw("hand_body", &LoopSettings::hand_body, "The hand's body (mass zeroed while released); -1: none.");
 
+  nb::class_<HeldTorque>(m, "HeldTorque",
+                         "The joint torques (dof,) [N·m or N] a loop over it applies, as last "
+                         "set: a simulated device driven from outside (virtmech ros2-sim).")
+      .def(nb::init<std::shared_ptr<Device>>(), "device"_a)
+      .def_prop_rw(
+          "torque", [](const HeldTorque& h) { return h.torque; },
+          [](HeldTorque& h, CF64 tau) {
+            require_rows("torque", tau.ndim(), size_t(h.torque.size()), tau.shape(0), 0, 0);
+            h.torque = Eigen::Map<const Eigen::VectorXd>(tau.data(), h.torque.size());
+          },
+          "The held torque (dof,): set it between the loop's runs.");
+
   nb::class_<PyServoLoop> loop(m, "ServoLoop", "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).");
-  loop.def(nb::init<virtmech::MechanismSet&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
+  loop.def(nb::init<HeldTorque&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
+                    const nb::dict&, const nb::dict&>(),
+           "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
+           nb::keep_alive<1, 2>(), "The loop applying a HeldTorque's torque (controller: it).")
+      .def(nb::init<virtmech::MechanismSet&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
                     const nb::dict&, const nb::dict&>(),
            "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
            nb::keep_alive<1, 2>(), "The loop rendering a MechanismSet (controller: the set).")

@@ -91,16 +91,17 @@ def controller_kwargs(c: dict) -> dict:
     return {r["name"]: c[r["name"]] for r in vm.CONTROLLER_SETTINGS if r["name"] in c}
 
 
-def _renderer(S: dict, device, controller, mechanisms: list):
+def _renderer(S: dict, device, controller, mechanisms: list, kw: dict | None = None):
     """The controller itself, or with [[set.members]] a vm.MechanismSet of every mechanism
-    (member 0: the [mechanism]), each with the [controller] settings."""
+    (member 0: the [mechanism]), each with the [controller] settings (or vm.Controller's
+    keywords `kw`)."""
     if len(mechanisms) == 1:
         return controller
     st = S["set"]
     settings = {r["name"]: st[r["name"]] for r in vm.SET_SETTINGS if r["name"] in st}
     s = vm.MechanismSet(device, len(mechanisms), period_s=S["controller"]["period_s"], **settings)
     s.add(controller)
-    kw = controller_kwargs(S["controller"])
+    kw = controller_kwargs(S["controller"]) if kw is None else kw
     for mech in mechanisms[1:]:
         s.add(vm.Controller(device, mech, **kw))
     return s
@@ -181,7 +182,7 @@ class Rig:
         S = {**self.data, "controller": {**c, **kw}}
         return replace(
             self, controller=controller,
-            renderer=_renderer(S, self.device, controller, self.mechanisms),
+            renderer=_renderer(S, self.device, controller, self.mechanisms, kw),
         )
 
     # -- simulation ----------------------------------------------------------------------

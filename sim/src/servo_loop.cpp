@@ -51,17 +51,37 @@ TimerOff::~TimerOff() {
 
 ServoLoop::ServoLoop(Controller& controller, mjModel* model, mjData* data,
                      LoopSettings settings, const PlanLayout& plan, const LogLayout& log)
-    : ctrl_(&controller), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+    : ctrl_(&controller),
+      device_(&controller.device()),
+      m_(model),
+      d_(data),
+      s_(std::move(settings)),
+      plan_(plan),
+      log_(log) {
   mdof_ = controller.mechanism().dof();
   init();
 }
 
 ServoLoop::ServoLoop(MechanismSet& set, mjModel* model, mjData* data, LoopSettings settings,
                      const PlanLayout& plan, const LogLayout& log)
-    : set_(&set), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+    : set_(&set), device_(&set.device()), m_(model), d_(data), s_(std::move(settings)),
+      plan_(plan), log_(log) {
   require(set.size() > 0, "set: expected a mechanism set with at least one member");
   for (int i = 0; i < set.size(); ++i) mdof_ = std::max(mdof_, set.member(i).mechanism().dof());
   init();
+}
+
+ServoLoop::ServoLoop(const Device& device, ExternalController& controller, mjModel* model,
+                     mjData* data, LoopSettings settings, const PlanLayout& plan,
+                     const LogLayout& log)
+    : external_(&controller), device_(&device), m_(model), d_(data), s_(std::move(settings)),
+      plan_(plan), log_(log) {
+  init();
+  // the controller's columns an external controller leaves: zero in every row
+  for (Vector6* v : {&out_.wrench, &out_.wrench_null, &out_.wrench_range, &out_.wrench_unrendered,
+                     &out_.error, &out_.error_dot, &out_.error_star, &out_.error_star_dot}) {
+    v->setZero();
+  }
 }
 
 void ServoLoop::init() {
@@ -91,6 +111,9 @@ void ServoLoop::init() {
   }
   require(s_.delay_cycles >= 0, "delay_cycles: expected >= 0");
   require(s_.quantum >= 0.0, "quantum: expected >= 0");
+  require(s_.velocity_alpha > 0.0 && s_.velocity_alpha <= 1.0,
+          "velocity_alpha: expected a number in (0, 1], got " +
+              std::to_string(s_.velocity_alpha));
   require(s_.hand_body == -1 || (s_.hand_body > 0 && s_.hand_body < m_->nbody),
           "hand_body: " + std::to_string(s_.hand_body) + " is not a body (nor -1: none)");
   if (s_.hand_body > 0) {
@@ -136,7 +159,8 @@ void ServoLoop::init() {
   CT_ = Cinv_.inverse().transpose();
   jacp_.assign(3 * size_t(n_), 0.0);
   ring_.assign(size_t(s_.delay_cycles + 1) * size_t(n_), 0.0);
-  for (JointVector* v : {&gs_, &tau_g_, &held_, &prev_, &dqf_, &q_, &dq_, &qm_, &cmd_,
+  velocity_ = VelocityFilter(n_, s_.period_s, s_.velocity_alpha);
+  for (JointVector* v : {&gs_, &tau_g_, &held_, &q_, &dq_, &qm_, &cmd_,
                          &q_cycle_, &dq_cycle_, &received_, &sv_, &hand_tau_}) {
     v->setZero(n_);
   }
@@ -190,8 +214,7 @@ void ServoLoop::sense(const double* noise, bool dropout) {
   std::copy(qm_.data(), qm_.data() + n_, ring_.data() + (reads_ % D) * n_);
   const long oldest = reads_ > delay ? reads_ - delay : 0;
   const Eigen::Map<const Eigen::VectorXd> received(ring_.data() + (oldest % D) * n_, n_);
-  if (reads_ > 0) dqf_ += s_.velocity_alpha * ((received - prev_) / s_.period_s - dqf_);
-  prev_ = received;
+  velocity_.update(received.data());
   received_ = received;
   ++reads_;
 }
@@ -254,13 +277,16 @@ void ServoLoop::control(double t, const double* noise, bool dropout) {
   sense(noise, dropout);
   const auto t0 = std::chrono::steady_clock::now();
   if (ctrl_) {
-    ctrl_->step(received_.data(), dqf_.data(), out_, t);
+    ctrl_->step(received_.data(), velocity_.velocity().data(), out_, t);
+  } else if (set_) {
+    set_->step(received_.data(), velocity_.velocity().data(), set_out_, t);
   } else {
-    set_->step(received_.data(), dqf_.data(), set_out_, t);
+    out_.torque.setZero(n_);
+    external_->control(t, received_.data(), velocity_.velocity().data(), out_.torque.data());
   }
   control_time_s_ +=
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!ctrl_) out_ = set_out_.cycle;
+  if (set_) out_ = set_out_.cycle;
   cmd_ = out_.torque;
   if (!s_.comp_bodies.empty()) {
     // gravity through the motors: -C^T sum_b J_com,b^T m_b g (kinematics from mj_step1)
@@ -291,7 +317,7 @@ void ServoLoop::write_row(double t, const Pose& T_h, const Vector6& tw0, const V
   put(log_.q, q_cycle_);
   put(log_.dq, dq_cycle_);
   put(log_.qm, received_);
-  put(log_.dqm, dqf_);
+  put(log_.dqm, velocity_.velocity());
   put(log_.handle_p, T_h.translation());
   put(log_.stylus, T_h.linear().col(2));
   put(log_.twist, tw0);

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "virtmech/sim/log_table.hpp"
+#include "virtmech/velocity_filter.hpp"
 #include "virtmech/virtmech.hpp"
 
 namespace virtmech::sim {
@@ -69,8 +70,19 @@ struct LoopSettings {
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  //!< for the compensation [m/s^2]
   double quantum = 0.0;             //!< encoder step [rad]; 0: none
   int delay_cycles = 0;             //!< sensor delay [cycles]
-  double velocity_alpha = 1.0;      //!< velocity low-pass: dqf += alpha (diff - dqf)
+  double velocity_alpha = 1.0;      //!< the VelocityFilter's gain, in (0, 1]
   int hand_body = -1;  //!< the hand's body (mass zeroed while released); -1: none
+};
+
+/// A controller outside the loop, called in the controller's place once per control cycle:
+/// a stand-in vendor library serving the simulated device to a real driver (tests/standin).
+/// It gets the measured joints (quantised, delayed: what the device's encoders give) and
+/// their velocity estimate, and writes the joint torques (the device's joints; the loop
+/// applies the actuated joints', with the gravity compensation).
+class ExternalController {
+ public:
+  virtual ~ExternalController() = default;
+  virtual void control(double t_s, const double* qm, const double* dqm, double* torque) = 0;
 };
 
 /// The loop. Holds the controller, model and data by reference: they must outlive it. The
@@ -87,6 +99,10 @@ class ServoLoop {
   /// columns as wide as the largest member's joints).
   ServoLoop(MechanismSet& set, mjModel* model, mjData* data, LoopSettings settings,
             const PlanLayout& plan, const LogLayout& log);
+  /// The same loop with an external controller on `device` (both must outlive the loop); the
+  /// log's controller columns (wrench, theta, e, ...) stay zero.
+  ServoLoop(const Device& device, ExternalController& controller, mjModel* model, mjData* data,
+            LoopSettings settings, const PlanLayout& plan, const LogLayout& log);
   ~ServoLoop();
   ServoLoop(const ServoLoop&) = delete;
   ServoLoop& operator=(const ServoLoop&) = delete;
@@ -107,7 +123,7 @@ class ServoLoop {
 
  private:
   void init();
-  const Device& device() const noexcept { return ctrl_ ? ctrl_->device() : set_->device(); }
+  const Device& device() const noexcept { return *device_; }
   void read_state();
   void sense(const double* noise, bool dropout);
   void control(double t, const double* noise, bool dropout);
@@ -118,8 +134,10 @@ class ServoLoop {
   void write_row(double t, const Pose& T_h, const Vector6& tw0, const Vector6& wrench0,
                  const double* plan, double* row) const;
 
-  Controller* ctrl_ = nullptr;  // one of the two
+  Controller* ctrl_ = nullptr;  // one of the three
   MechanismSet* set_ = nullptr;
+  ExternalController* external_ = nullptr;
+  const Device* device_ = nullptr;
   MechanismSetOutput set_out_;
   mjModel* m_;
   mjData* d_;
@@ -130,8 +148,9 @@ class ServoLoop {
   JointMatrix Cinv_, CinvT_, CT_;
   JointVector c0_;
   std::vector<double> jacp_, ring_;
-  JointVector gs_, tau_g_, held_, prev_, dqf_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_,
-      received_, sv_, hand_tau_;
+  JointVector gs_, tau_g_, held_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_, received_, sv_,
+      hand_tau_;
+  VelocityFilter velocity_;  // the estimate from the received positions (dqm)
   long reads_ = 0;
   double control_time_s_ = 0.0;
   bool attached_ = true;
