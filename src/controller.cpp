@@ -283,7 +283,8 @@ void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
   const TrackOptions& opts = first ? M.track_initial : M.track;
   const JointVector theta0 = placement_start(M, mech, target, W, first, p);
   JointVector theta;
-  p.result = detail::track(mech, target, theta0, W, opts, theta, p.pose, p.J, p.error);
+  p.result = detail::track(mech, target, opts, PlacementIO{&W, &theta0, &theta, &p.pose, &p.J,
+                                                            &p.error});
   placed(mech, first, theta, p);
 }
 
