@@ -36,6 +36,11 @@ build/cpp/examples/surface_probe_c | tail -n 3
 echo "== Python: ruff"
 .venv/bin/ruff check python tests/python tests/reference examples/python
 
+# report only for now (its exit status is not the suite's): every function longer than 80
+# lines or of cyclomatic complexity above 20
+echo "== lizard (report only): functions over 80 lines or cyclomatic complexity 20"
+.venv/bin/lizard -L 80 -C 20 -w src include sim python || true
+
 # the suite (tests marked slow excluded: pyproject.toml's addopts), then the slow ones: the
 # thorough variants of the global-optimum and reference checks and the bench's NumPy column
 for marks in "" "slow"; do
