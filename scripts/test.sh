@@ -18,6 +18,20 @@ cmake -S . -B build/cpp "${generator[@]}" -DCMAKE_BUILD_TYPE=Release \
 cmake --build build/cpp -j "$jobs"
 ctest --test-dir build/cpp --output-on-failure -j "$jobs"
 
+# the same suites over the core built on <cmath> (its own atan2, rotation logarithm and cycle
+# clock replaced by the library's: docs/performance.md); the allocation-free build above
+# does not depend on it
+echo "== C++: the core on <cmath> (VIRTMECH_STD_MATH=ON): build and GoogleTest"
+cmake -S . -B build/cpp-std-math "${generator[@]}" -DCMAKE_BUILD_TYPE=Release \
+  -DVIRTMECH_BUILD_TESTS=ON -DVIRTMECH_STD_MATH=ON \
+  -DPython_EXECUTABLE="$PWD/.venv/bin/python" >/dev/null
+std_math_tests=(virtmech_tests)
+[ -f build/cpp/tests/cpp/virtmech_sim_tests ] && std_math_tests+=(virtmech_sim_tests)
+cmake --build build/cpp-std-math -j "$jobs" --target "${std_math_tests[@]}"
+for t in "${std_math_tests[@]}"; do
+  build/cpp-std-math/tests/cpp/"$t" --gtest_brief=1
+done
+
 echo "== C++: install, then find_package(virtmech) from a downstream project"
 cmake --install build/cpp >/dev/null
 eigen_prefix="$(.venv/bin/python -c 'import os, sysconfig; print(os.path.join(sysconfig.get_paths()["purelib"], "cmeel.prefix"))')"

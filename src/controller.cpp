@@ -7,7 +7,6 @@
 
 #include "cycle_clock.hpp"
 #include "flush_denormals.hpp"
-#include "small_products.hpp"
 #include "track_detail.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/se3.hpp"
@@ -243,7 +242,7 @@ void device_kinematics(const Device& dev, ControllerData& d, const double* q, co
   } else {
     dev.forward_jacobian(q, d.handle_pose, d.J_R);
   }
-  d.v_R = detail::jacobian_times(d.J_R, dq);
+  d.v_R.noalias() = d.J_R * Eigen::Map<const JointVector>(dq, d.J_R.cols());
 }
 
 // J without the columns of the joints in `active`.
@@ -571,7 +570,7 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
   advance_ramp(M, d, out);
   f *= scale * out.ramp;
 
-  detail::jacobian_transpose_times(d.J_R, f, out.torque);  // eq. 8
+  out.torque.noalias() = d.J_R.transpose() * f;  // eq. 8
   double tscale = 1.0;
   for (int i = 0; i < n; ++i) {
     if (!dev.actuated(i)) {

@@ -6,7 +6,6 @@
 #include <stdexcept>
 
 #include "flush_denormals.hpp"
-#include "small_products.hpp"
 #include "virtmech/validate.hpp"
 
 namespace virtmech {
@@ -208,7 +207,7 @@ void MechanismSet::blend(MechanismSetOutput& out) noexcept {
   // tau = J_R^T f, the passive joints at zero (the blend of two renderable wrenches
   // is renderable), within the joint torque limits
   const Controller& any = *members_[0];
-  detail::jacobian_transpose_times(any.data().J_R, f, out.cycle.torque);
+  out.cycle.torque.noalias() = any.data().J_R.transpose() * f;
   double tscale = 1.0;
   for (int i = 0; i < device_->dof(); ++i) {
     if (!device_->actuated(i)) {

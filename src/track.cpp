@@ -6,7 +6,6 @@
 #include <utility>
 
 #include "small_cholesky.hpp"
-#include "small_products.hpp"
 #include "track_detail.hpp"
 #include "trig.hpp"
 #include "virtmech/se3.hpp"
@@ -63,7 +62,7 @@ inline void evaluate(const Mechanism& m, const Pose& target, const JointVector& 
   ev.cost = ev.e.dot(We);
   ev.mapped = error_derivative(ev.J, ev.e, W, ev.D_mapped);
   // eq. 23's residual; -1/2 of the cost gradient
-  detail::jacobian_transpose_times(ev.D(), We, ev.g);
+  ev.g.noalias() = ev.D().transpose() * We;
 }
 
 inline double cost_at(const Mechanism& m, const Pose& target, const JointVector& theta,
@@ -134,7 +133,7 @@ TrackResult detail::closed_form_result(const Mechanism& mechanism, const Vector6
   if (on_bound) {
     JointVector g;
     Jacobian D;
-    detail::jacobian_transpose_times(error_derivative(J, error, weights, D) ? D : J, We, g);
+    g.noalias() = (error_derivative(J, error, weights, D) ? D : J).transpose() * We;
     result.active = active_set(mechanism, theta, g, result.active_upper);
   }
   return result;
