@@ -2,8 +2,8 @@
 # Builds and runs the cycle benchmarks (docs/performance.md): the per-cycle latency harness
 # (median, p99, p99.9, worst over 1e6 cycles per case, allocations counted), the Google
 # Benchmark suite of the cycle and its parts, then `virtmech bench` from the virtual
-# environment (C++ against Python and the NumPy reference cycle of tests/reference, found
-# because it runs from this checkout; and the simulation's real-time factor).
+# environment with the NumPy reference cycle of tests/reference (bench/numpy_baseline.py:
+# C++ against Python and NumPy; and the simulation's real-time factor).
 #
 #   scripts/bench.sh                    this tree
 #   scripts/bench.sh --compare REV      also REV's core under the same harness, run back to back
@@ -71,8 +71,8 @@ fi
 
 echo
 if "$py" -c "import virtmech.bench" >/dev/null 2>&1; then
-  echo "== virtmech bench (installed package)"
-  "$py" -m virtmech.bench --cycles "$cycles" "${cpu[@]}"
+  echo "== virtmech bench (installed package) with the NumPy reference of this checkout"
+  "$py" bench/numpy_baseline.py --cycles "$cycles" "${cpu[@]}"
 else
   echo "== virtmech bench: virtmech is not installed for $py (scripts/setup.sh)"
 fi

@@ -16,7 +16,16 @@ cmake -S . -B build/cpp "${generator[@]}" -DCMAKE_BUILD_TYPE=Release \
   -DVIRTMECH_BUILD_TESTS=ON -DVIRTMECH_BUILD_EXAMPLES=ON \
   -DPython_EXECUTABLE="$PWD/.venv/bin/python" -DCMAKE_INSTALL_PREFIX="$PWD/build/prefix" >/dev/null
 cmake --build build/cpp -j "$jobs"
-ctest --test-dir build/cpp --output-on-failure -j "$jobs"
+# ctest's line per test (some 250, dotted out to a column) to a log: here its summary, or
+# all of it when a test fails
+ctest_log=build/cpp/ctest.log
+echo "ctest: $(ctest --test-dir build/cpp -N | tail -n 1) (each test's line: $ctest_log)"
+if ctest --test-dir build/cpp --output-on-failure -j "$jobs" >"$ctest_log" 2>&1; then
+  grep -E "tests passed|Total Test time" "$ctest_log"
+else
+  cat "$ctest_log"
+  exit 1
+fi
 
 # the same suites over the core built on <cmath> (its own atan2, rotation logarithm and cycle
 # clock replaced by the library's: docs/performance.md); the allocation-free build above
@@ -41,11 +50,18 @@ cmake --build build/consumer -j "$jobs" >/dev/null
 build/consumer/consumer
 
 echo "== examples"
-build/cpp/examples/01_omni_loop_c | tail -n 3
-build/cpp/examples/01_omni_loop_cpp | tail -n 3
-build/cpp/examples/02_custom_mechanism_cpp | tail -n 3
-build/cpp/examples/surface_probe_c | tail -n 3
-.venv/bin/python examples/python/01_omni_loop.py | tail -n 3
+example() {  # an example's title and column headings, then its last rows
+  local out
+  out="$("$@")"
+  head -n 2 <<<"$out"
+  echo "     ..."
+  tail -n 3 <<<"$out"
+}
+example build/cpp/examples/01_omni_loop_c
+example build/cpp/examples/01_omni_loop_cpp
+example build/cpp/examples/02_custom_mechanism_cpp
+example build/cpp/examples/surface_probe_c
+example .venv/bin/python examples/python/01_omni_loop.py
 
 echo "== Python: ruff"
 .venv/bin/ruff check python tests/python tests/reference examples/python

@@ -3,6 +3,7 @@
 
 #include "virtmech/controller.hpp"
 #include "virtmech/device.hpp"
+#include "virtmech/device_pose.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/geometry.hpp"
 #include "virtmech/kinematic_chain.hpp"

@@ -947,6 +947,22 @@ NB_MODULE(_core, m) {
       "weighted Gauss-Newton. Returns .theta, .iterations (0: closed form), .residual, "
       ".converged, .active (joints held at a limit).");
 
+  m.def(
+      "reach",
+      [](const Device& device, nb::handle target, nb::handle seeds, double length_scale,
+         int max_iterations) {
+        std::vector<JointVector> s;
+        for (nb::handle h : seeds) s.push_back(joint_values("seeds", h, device.dof()));
+        const DevicePose r = reach(device, to_pose("target", target), s, length_scale,
+                                   max_iterations);
+        return nb::make_tuple(Eigen::VectorXd(r.q), Eigen::VectorXd(r.error), r.seed);
+      },
+      "device"_a, "target"_a, "seeds"_a, "length_scale"_a = 0.1, "max_iterations"_a = 200,
+      "The device's joint values (dof,) within its limits whose handle pose is nearest the "
+      "target (4, 4), weighted [1 1 1 L^2 L^2 L^2]: Levenberg-Marquardt on the device's "
+      "kinematics from each seed (dof,) in turn, the first that reaches it kept, else the "
+      "nearest. Returns (q, pose_error(target, forward(q)) (6,), the seed's index).");
+
   // --- controller
   nb::class_<CycleOutput>(m, "CycleOutput", "Everything one controller cycle reports.")
       .def(nb::init<>(), "An empty output, to be filled by Controller.step(..., out=...).")
@@ -967,32 +983,47 @@ NB_MODULE(_core, m) {
                    "Un-powered placement (m,) (W_e*).")
       .def_prop_ro("error", [](const CycleOutput& o) { return Eigen::VectorXd(o.error); },
                    "e = X_V - X_R (6,) [m; rad].")
-      .def_prop_ro("error_dot", [](const CycleOutput& o) { return Eigen::VectorXd(o.error_dot); })
-      .def_prop_ro("error_star", [](const CycleOutput& o) { return Eigen::VectorXd(o.error_star); })
+      .def_prop_ro("error_dot", [](const CycleOutput& o) { return Eigen::VectorXd(o.error_dot); },
+                   "The rate of e (6,) [m/s; rad/s] (error_velocity: 'relative' or 'handle').")
+      .def_prop_ro("error_star", [](const CycleOutput& o) { return Eigen::VectorXd(o.error_star); },
+                   "e* = X_V* - X_R at the un-powered placement theta_star (6,) [m; rad] "
+                   "(eq. 25).")
       .def_prop_ro("error_star_dot",
-                   [](const CycleOutput& o) { return Eigen::VectorXd(o.error_star_dot); })
+                   [](const CycleOutput& o) { return Eigen::VectorXd(o.error_star_dot); },
+                   "The rate of e* (6,) [m/s; rad/s].")
       .def_prop_ro("handle_pose",
-                   [](const CycleOutput& o) { return Eigen::Matrix4d(o.handle_pose.matrix()); })
+                   [](const CycleOutput& o) { return Eigen::Matrix4d(o.handle_pose.matrix()); },
+                   "The device's handle pose X_R (4, 4) [m]: origin at the grip point, +z "
+                   "along the stylus toward the tip.")
       .def_prop_ro("mechanism_pose",
-                   [](const CycleOutput& o) { return Eigen::Matrix4d(o.mechanism_pose.matrix()); })
+                   [](const CycleOutput& o) { return Eigen::Matrix4d(o.mechanism_pose.matrix()); },
+                   "The mechanism's handle pose X_V at theta (4, 4) [m].")
       .def_prop_ro("mechanism_pose_star", [](const CycleOutput& o) {
         return Eigen::Matrix4d(o.mechanism_pose_star.matrix());
-      })
+      }, "The mechanism's handle pose X_V* at theta_star (4, 4) [m].")
       .def_prop_ro("active", [](const CycleOutput& o) { return joint_mask(o.active, o.theta.size()); },
                    "Joints of the nearest placement held at a limit that acts (m,) of bool: "
                    "locked for the filters (a one-sided limit renders contact).")
       .def_prop_ro("active_star",
                    [](const CycleOutput& o) { return joint_mask(o.active_star, o.theta_star.size()); },
                    "Joints of the un-powered placement held at a limit that acts (m,).")
-      .def_ro("iterations", &CycleOutput::iterations)
-      .def_ro("iterations_star", &CycleOutput::iterations_star)
-      .def_ro("residual", &CycleOutput::residual)
-      .def_ro("residual_star", &CycleOutput::residual_star)
+      .def_ro("iterations", &CycleOutput::iterations,
+              "Gauss-Newton iterations of this cycle's nearest placement (0: its closed form).")
+      .def_ro("iterations_star", &CycleOutput::iterations_star,
+              "Gauss-Newton iterations of this cycle's un-powered placement.")
+      .def_ro("residual", &CycleOutput::residual,
+              "The nearest placement's weighted error sqrt(e^T W_e e) [m] (rotations weighted "
+              "by the length scale squared): 0 when the handle is on the mechanism.")
+      .def_ro("residual_star", &CycleOutput::residual_star,
+              "The un-powered placement's, sqrt(e*^T W_e* e*) [m]; 0 without eq. 26's range "
+              "term.")
       .def_ro("ramp", &CycleOutput::ramp, "Ramp-in factor applied, in [0, 1].")
       .def_ro("limit_scale", &CycleOutput::limit_scale, "Factor applied by the force/torque limits.")
       .def_ro("energy", &CycleOutput::energy,
-              "Energy tank: the energy it may give this cycle [J] (absorbed, capped, less what "
-              "the null-space spring stores; 0 with passivity off).")
+              "The energy tank's level [J]: the energy the rendering has absorbed (0 at the "
+              "start, less the motors' work since), at most stored_energy + "
+              "passivity_max_energy_j; below 0 a deficit, which fades the range term out "
+              "(docs/theory.md, 8). 0 with passivity off.")
       .def_ro("stored_energy", &CycleOutput::stored_energy,
               "What the law's springs hold [J] (the energy tank subtracts it).")
       .def_prop_ro("wrench_passivity",
@@ -1003,8 +1034,11 @@ NB_MODULE(_core, m) {
       .def_ro("status", &CycleOutput::status, "Status bits (virtmech.status).")
       .def_ro("computation_time_us", &CycleOutput::computation_time_us,
               "This cycle's own computation time [µs] (the time-stamp counter where invariant).")
-      .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); })
-      .def_prop_ro("fault", [](const CycleOutput& o) { return (o.status & status::kFaultMask) != 0; });
+      .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); },
+                   "The names of the status bits set, e.g. ['ramping'] while the force ramps "
+                   "in (virtmech.status).")
+      .def_prop_ro("fault", [](const CycleOutput& o) { return (o.status & status::kFaultMask) != 0; },
+                   "True when a fault bit is set (status & 0xFF00): the torque is zero.");
 
   nb::class_<Controller>(m, "Controller",
                          "The virtual-mechanism controller: one step() per servo cycle.")
@@ -1055,10 +1089,35 @@ NB_MODULE(_core, m) {
           "passivity"_a = "energy_tank",
           "passivity_max_energy_j"_a = ControllerSettings().passivity_max_energy_j,
           "passivity_fade_j"_a = ControllerSettings().passivity_fade_j,
-          "Controller(device, mechanism, **settings). Gains and weights are 6-vectors "
-          "[x y z rx ry rz]; unset ones take the defaults of docs/theory.md (derived from the "
-          "device's actuation and the length scale). law: 'auto' | 'null_space' (eq. 11) | "
-          "'under_actuated' (eq. 26). passivity: 'energy_tank' (default) | 'off'.")
+          "Controller(device, mechanism, **settings): validated and allocated here, once; "
+          "then step() once per servo cycle.\n\n"
+          "Gains and weights are 6-vectors [x y z rx ry rz]; unset ones take the defaults of "
+          "docs/theory.md (derived from the device's actuation and the length scale L).\n"
+          "kp: stiffness [N/m x3; N·m/rad x3]. kv: damping [N·s/m x3; N·m·s/rad x3].\n"
+          "w_a, w_e, w_e_star: the filters' weights W_A and the placements' W_e, W_e* "
+          "(eq. 25), rotations weighted by L^2.\n"
+          "length_scale: L [m]; 0 takes the mechanism's.\n"
+          "law: 'auto' (eq. 26 on an under-actuated device, else eq. 11) | 'null_space' "
+          "(eq. 11) | 'under_actuated' (eq. 26).\n"
+          "error_velocity: 'relative' | 'handle' (docs/theory.md, 3).\n"
+          "period_s: the servo period [s]. ramp_time_s: the force's ramp-in after the start, "
+          "a fault or a watchdog trip [s].\n"
+          "watchdog_s: the longest gap allowed between the time stamps t of step(q, dq, t) [s]; "
+          "a longer gap, or time running backwards, restarts the ramp-in and empties the "
+          "energy tank (status 'watchdog'); 0: off.\n"
+          "max_force [N], max_torque [N·m]: limits on the wrench at the handle; 0 takes the "
+          "device's.\n"
+          "max_iterations, max_iterations_initial: placement iterations per cycle, and on the "
+          "first cycle.\n"
+          "secondary_weight: the weight of [1 1 1 L^2 L^2 L^2] added to W_e and W_e* "
+          "(dimensionless), so that directions their weights leave free are settled by the "
+          "full pose error instead of drifting.\n"
+          "range_margin_rad [rad], range_margin_m [m]: how far q may leave the device's joint "
+          "range (revolute, prismatic joints) before the cycle faults (fault_out_of_range).\n"
+          "passivity: 'energy_tank' (default: eq. 26's range term never gives more than the "
+          "user put in; docs/theory.md, 8) | 'off' (the laws as written).\n"
+          "passivity_max_energy_j: the most the tank holds beyond the springs' energy [J]. "
+          "passivity_fade_j: the range term fades out as the tank falls from 0 to -this [J].")
       .def(
           "step",
           [](Controller& self, nb::handle q, nb::handle dq, double t, nb::handle out,
@@ -1129,10 +1188,14 @@ NB_MODULE(_core, m) {
                      return l;
                    },
                    "Per member: unilateral and in contact.")
-      .def_prop_ro("torque", [](const MechanismSetOutput& o) { return Eigen::VectorXd(o.cycle.torque); })
-      .def_prop_ro("wrench", [](const MechanismSetOutput& o) { return o.cycle.wrench; })
-      .def_prop_ro("status", [](const MechanismSetOutput& o) { return o.cycle.status; })
-      .def_prop_ro("status_names", [](const MechanismSetOutput& o) { return status_names(o.cycle.status); });
+      .def_prop_ro("torque", [](const MechanismSetOutput& o) { return Eigen::VectorXd(o.cycle.torque); },
+                   "The set's joint torques (n,) [N·m or N] (cycle.torque).")
+      .def_prop_ro("wrench", [](const MechanismSetOutput& o) { return o.cycle.wrench; },
+                   "The set's wrench at the handle (6,) [N; N·m] (cycle.wrench).")
+      .def_prop_ro("status", [](const MechanismSetOutput& o) { return o.cycle.status; },
+                   "Status bits of the rendered member's cycle (virtmech.status).")
+      .def_prop_ro("status_names", [](const MechanismSetOutput& o) { return status_names(o.cycle.status); },
+                   "The names of the status bits set (virtmech.status).");
 
   nb::class_<MechanismSet>(
       m, "MechanismSet",

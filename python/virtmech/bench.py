@@ -7,10 +7,11 @@ For each benchmark case (a device and a mechanism, driven along a fixed joint tr
   ``operator new`` and, on glibc, a counting ``malloc``: real counts, not assumptions);
 - ``Controller.step`` called from Python over the same trajectory (median per call), so the
   binding's own cost is the difference;
-- when run from a source checkout, the NumPy reference cycle of ``tests/reference`` (the
-  same mathematics written the obvious way, its placements solved on their own to their own
-  tolerance), timed over the same cycles, with its largest torque difference from the core
-  (otherwise that column is skipped, with a note);
+- given a NumPy reference cycle (the same mathematics written the obvious way, its
+  placements solved on their own to their own tolerance: ``tests/reference`` of a source
+  checkout, which ``bench/numpy_baseline.py`` passes in; the installed package has none and
+  skips that column with a note), that cycle timed over the same cycles, with its largest
+  torque difference from the core;
 
 and, when the simulation is installed, the closed-loop simulation's real-time factor for
 every shipped scenario. The trajectory and the cases are those of ``bench/bench_cases.hpp``.
@@ -203,29 +204,6 @@ def python_step(case: Case, cycles: int) -> dict[str, Any]:
             "iterations": its, "q": q, "dq": dq}
 
 
-def load_reference(roots: list[Path] | None = None) -> tuple[Any, str]:
-    """The NumPy reference cycle (tests/reference), found in a source checkout: the current
-    directory or one above it, or $VIRTMECH_SOURCE_DIR. It is not shipped with the package.
-    Returns the module, or None and why not."""
-    if roots is None:
-        env = os.environ.get("VIRTMECH_SOURCE_DIR")
-        roots = [Path(env)] if env else []
-        roots += [Path.cwd(), *Path.cwd().parents]
-    for root in roots:
-        if (root / "tests" / "reference" / "__init__.py").is_file() and \
-                (root / "bench" / "bench_cases.hpp").is_file():
-            path = str(root / "tests")
-            if path not in sys.path:
-                sys.path.insert(0, path)
-            try:
-                import reference
-            except Exception as exc:  # a broken checkout: report, do not fail the run
-                return None, f"NumPy reference in {root} not importable ({exc})"
-            return reference, ""
-    return None, ("NumPy column skipped: the NumPy reference cycle (tests/reference) comes "
-                  "with a source checkout; run from the repository or set VIRTMECH_SOURCE_DIR")
-
-
 def numpy_reference(case: Case, reference: Any, q_warm: np.ndarray, dq_warm: np.ndarray,
                     q: np.ndarray, dq: np.ndarray) -> dict[str, Any]:
     """Runs the NumPy reference cycle (its own placements, to its own tolerance): untimed
@@ -254,7 +232,8 @@ def numpy_reference(case: Case, reference: Any, q_warm: np.ndarray, dq_warm: np.
 
 
 def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
-                       mujoco_alone: Any = None) -> tuple[list[dict[str, Any]], str]:
+                       mujoco_alone: Any = None,
+                       show: Any = None) -> tuple[list[dict[str, Any]], str]:
     """Real-time factor of each shipped scenario, if the simulation is installed: simulated
     seconds per wall second of the closed loop (`SimResult.wall_time_s`); `repeats` runs,
     each followed by MuJoCo alone on the same steps (`mujoco_alone(result, 1)`, default
@@ -269,7 +248,8 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
     thread, alongside the loop), `derived_wait_s` the part of the wall time the loop spent
     on them or waited for them, and `loop_overhead_vs_mujoco` the rest of the wall time
     (the simulation around the rendering: sensors, the hand, the log rows) over MuJoCo
-    alone. Returns the figures and a note."""
+    alone. Returns the figures and a note; `show(line)`, if given, gets the table's heading
+    and then each scenario's line as soon as it is measured."""
     try:
         from virtmech import scenarios as vs
         from virtmech import sim as vsim
@@ -279,6 +259,9 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
         return [], "simulation not available (needs scenarios.names/load and sim.run)"
     out: list[dict[str, Any]] = []
     notes: list[str] = []
+    if show is not None:
+        for line in _simulation_head():
+            show(line)
     for name in scenarios if scenarios is not None else list(vs.names()):
         try:
             scenario = vs.load(name)
@@ -312,6 +295,8 @@ def simulation_figures(scenarios: list[str] | None = None, repeats: int = 5,
                     "loop_overhead_vs_mujoco": (wall_s - control_s - wait_s) / mujoco_s,
                     "engine": result.info["physics"].get("engine", "python"),
                     "runs": repeats})
+        if show is not None:
+            show(_simulation_line(out[-1]))
     return out, "; ".join(notes)
 
 
@@ -326,7 +311,7 @@ def mujoco_alone_s(result: Any, repeats: int = 3) -> float:
     import mujoco
     from mujoco import rollout
 
-    from virtmech.sim.loop import make_device
+    from virtmech.builder import make_device
     from virtmech.sim.model import coupling_of
 
     model = mujoco.MjModel.from_xml_string(result.info["mjcf"])
@@ -380,76 +365,108 @@ def machine() -> dict[str, Any]:
     return info
 
 
+#: why the NumPy column is empty when no reference is given
+NO_REFERENCE = ("NumPy column skipped: the NumPy reference cycle is not part of the package; "
+                "from a source checkout, python bench/numpy_baseline.py (or scripts/bench.sh) "
+                "measures it")
+
+
 def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CYCLES,
             numpy_cycles: int = DEFAULT_NUMPY_CYCLES, cases: list[str] | None = None,
-            simulation: bool = True, cpu: int | None = None) -> dict[str, Any]:
-    """Runs every measurement and returns the report (the --json object)."""
+            simulation: bool = True, cpu: int | None = None,
+            reference: Any = None, show: Any = None) -> dict[str, Any]:
+    """Runs every measurement and returns the report (the --json object). `reference`: a
+    NumPy reference cycle module (tests/reference's interface: case_models, NpController),
+    timed beside the core when given. `show(line)`, if given, gets the lines of
+    `format_table` as their figures are measured: the machine and the headings first, then
+    each case's line (the harness runs case by case), each simulation scenario's, the
+    notes."""
     import virtmech as vm
+
+    def say(*lines: str) -> None:
+        for line in lines if show is not None else ():
+            show(line)
 
     names = list(cases) if cases else list(CASES)
     report: dict[str, Any] = {"virtmech_version": vm.__version__, "machine": machine()}
-    harness = run_harness(cycles, names, cpu)
-    report["machine"]["harness"] = harness["machine"]
-    report["cycles"] = harness["cycles"]
-    report["sizeof"] = harness["sizeof"]
-    report["allocation_counter"] = harness["allocation_counter"]
-    by_name = {c["name"]: c for c in harness["cases"]}
-    reference, numpy_note = (None, "NumPy column skipped (--numpy-cycles 0)")
-    if numpy_cycles > 0:
-        reference, numpy_note = load_reference()
+    numpy_note = "NumPy column skipped (--numpy-cycles 0)" if numpy_cycles <= 0 else ""
+    if numpy_cycles <= 0:
+        reference = None
+    elif reference is None:
+        numpy_note = NO_REFERENCE
     out_cases = []
     for name in names:
-        h = by_name[name]
-        case = make_case(name)
-        py = python_step(case, python_cycles)
-        row: dict[str, Any] = {
-            "name": name,
-            "median_us": float(h["median_us"]), "p99_us": float(h["p99_us"]),
-            "p999_us": float(h["p999_us"]), "max_us": float(h["max_us"]),
-            "mean_us": float(h["mean_us"]), "cycles": h["cycles"],
-            "allocations": int(h["allocations"]),
-            "mean_iterations": h["mean_iterations"] + h["mean_iterations_star"],
-            "numpy_median_us": None, "speedup_vs_numpy": None,
-            "cpp_median_numpy_cycles_us": None, "numpy_cycles": 0,
-            "numpy_max_torque_difference": None,
-            "python_step_median_us": py["median_us"],
-            "python_overhead_us": py["overhead_us"],
-            "python_cycles": python_cycles,
-        }
-        if reference is not None:
-            # the reference runs from a fresh start through the last REFERENCE_WARMUP cycles
-            # before the timed ones (its torque ramp is over by then; its placements do not
-            # depend on the history), then over the cycles Python timed
-            period = case.controller.model["period_s"]
-            q_w, dq_w = case.joint_state(np.arange(WARMUP - REFERENCE_WARMUP, WARMUP), period)
-            m = min(numpy_cycles, python_cycles)
-            nb = numpy_reference(case, reference, q_w, dq_w, py["q"][:m], py["dq"][:m])
-            # side by side: the C++ cycle's own time over the very cycles NumPy ran (a case's
-            # cost varies along its trajectory, so medians over other spans would not compare)
-            cpp_same = float(np.median(py["own_us"][:m]))
-            row.update({
-                "numpy_median_us": nb["median_us"],
-                "speedup_vs_numpy": nb["median_us"] / cpp_same if cpp_same > 0 else None,
-                "cpp_median_numpy_cycles_us": cpp_same, "numpy_cycles": m,
-                "numpy_max_torque_difference": nb["torque_difference"],
-            })
+        harness = run_harness(cycles, [name], cpu)
+        if not out_cases:  # what the figures are measured on, from the first run
+            report["machine"]["harness"] = harness["machine"]
+            report["cycles"] = harness["cycles"]
+            report["sizeof"] = harness["sizeof"]
+            report["allocation_counter"] = harness["allocation_counter"]
+            say(*_head(report), *_case_head())
+        elif not harness["allocation_counter"].get("self_test_passed", True):
+            report["allocation_counter"]["self_test_passed"] = False
+        row = _case_row(name, harness["cases"][0], python_cycles, numpy_cycles, reference)
         out_cases.append(row)
+        say(_case_line(row))
     if numpy_note:
         report["numpy_note"] = numpy_note
     report["cases"] = out_cases
+    say(*_case_notes(report), "")
     if simulation:
-        report["simulation"], note = simulation_figures()
+        report["simulation"], note = simulation_figures(show=show)
     else:
         report["simulation"], note = [], "simulation skipped (--no-sim)"
     if note:
         report["simulation_note"] = note
+    say(*_simulation_notes(report))
     return report
 
 
-def format_table(r: dict[str, Any]) -> str:
-    """The report as a readable table."""
+def _case_row(name: str, h: dict, python_cycles: int, numpy_cycles: int,
+              reference: Any) -> dict[str, Any]:
+    """One case's figures: the harness's (h), Python's step over the same trajectory, and,
+    given a reference, the NumPy reference cycle's beside the core's."""
+    case = make_case(name)
+    py = python_step(case, python_cycles)
+    row: dict[str, Any] = {
+        "name": name,
+        "median_us": float(h["median_us"]), "p99_us": float(h["p99_us"]),
+        "p999_us": float(h["p999_us"]), "max_us": float(h["max_us"]),
+        "mean_us": float(h["mean_us"]), "cycles": h["cycles"],
+        "allocations": int(h["allocations"]),
+        "mean_iterations": h["mean_iterations"] + h["mean_iterations_star"],
+        "numpy_median_us": None, "speedup_vs_numpy": None,
+        "cpp_median_numpy_cycles_us": None, "numpy_cycles": 0,
+        "numpy_max_torque_difference": None,
+        "python_step_median_us": py["median_us"],
+        "python_overhead_us": py["overhead_us"],
+        "python_cycles": python_cycles,
+    }
+    if reference is None:
+        return row
+    # the reference runs from a fresh start through the last REFERENCE_WARMUP cycles before
+    # the timed ones (its torque ramp is over by then; its placements do not depend on the
+    # history), then over the cycles Python timed
+    period = case.controller.model["period_s"]
+    q_w, dq_w = case.joint_state(np.arange(WARMUP - REFERENCE_WARMUP, WARMUP), period)
+    m = min(numpy_cycles, python_cycles)
+    nb = numpy_reference(case, reference, q_w, dq_w, py["q"][:m], py["dq"][:m])
+    # side by side: the C++ cycle's own time over the very cycles NumPy ran (a case's cost
+    # varies along its trajectory, so medians over other spans would not compare)
+    cpp_same = float(np.median(py["own_us"][:m]))
+    row.update({
+        "numpy_median_us": nb["median_us"],
+        "speedup_vs_numpy": nb["median_us"] / cpp_same if cpp_same > 0 else None,
+        "cpp_median_numpy_cycles_us": cpp_same, "numpy_cycles": m,
+        "numpy_max_torque_difference": nb["torque_difference"],
+    })
+    return row
+
+
+def _head(r: dict[str, Any]) -> list[str]:
+    """What the figures were measured on."""
     m = r["machine"]
-    lines = [
+    return [
         f"virtmech {r['virtmech_version']} benchmark: {r['cycles']} C++ cycles per case",
         f"machine: {m['cpu']}, {m['logical_cpus']} logical CPUs, {m.get('platform', '')}, "
         f"Python {m.get('python')}, NumPy {m.get('numpy')}",
@@ -457,47 +474,100 @@ def format_table(r: dict[str, Any]) -> str:
         f"timer overhead {m['harness'].get('timer_overhead_ns')} ns (in the C++ figures)",
         "sizeof: " + ", ".join(f"{k} {v} B" for k, v in r["sizeof"].items()),
         "",
+    ]
+
+
+def _case_head() -> list[str]:
+    return [
         f"{'case':<21}{'median':>8}{'p99':>8}{'p99.9':>8}{'max':>8}{'allocs':>7}"
         f"{'NumPy':>10}{'speedup':>9}{'Python':>8}{'overhead':>9}",
         f"{'':<21}{'[us]':>8}{'[us]':>8}{'[us]':>8}{'[us]':>8}{'':>7}"
         f"{'[us]':>10}{'[x]':>9}{'[us]':>8}{'[us]':>9}",
     ]
-    for c in r["cases"]:
-        nm, sp = c["numpy_median_us"], c["speedup_vs_numpy"]
-        lines.append(
-            f"{c['name']:<21}{c['median_us']:>8.3f}{c['p99_us']:>8.3f}{c['p999_us']:>8.3f}"
-            f"{c['max_us']:>8.1f}{c['allocations']:>7d}"
-            f"{(f'{nm:.1f}' if nm is not None else '-'):>10}"
-            f"{(f'{sp:.0f}' if sp is not None else '-'):>9}{c['python_step_median_us']:>8.3f}"
-            f"{c['python_overhead_us']:>9.3f}")
+
+
+def _fit(x: float, width: int, decimals: int) -> str:
+    """x right-aligned in width with at least one space before it: fewer decimals where a
+    large value (a loaded machine's milliseconds) would run into the column before."""
+    text = f"{x:.{decimals}f}"
+    while len(text) >= width and decimals > 0:
+        decimals -= 1
+        text = f"{x:.{decimals}f}"
+    return f"{text:>{width}}"
+
+
+def _case_line(c: dict[str, Any]) -> str:
+    nm, sp = c["numpy_median_us"], c["speedup_vs_numpy"]
+    return (
+        f"{c['name']:<21}{_fit(c['median_us'], 8, 3)}{_fit(c['p99_us'], 8, 3)}"
+        f"{_fit(c['p999_us'], 8, 3)}{_fit(c['max_us'], 8, 1)}{c['allocations']:>7d}"
+        f"{(f'{nm:.1f}' if nm is not None else '-'):>10}"
+        f"{(f'{sp:.0f}' if sp is not None else '-'):>9}{c['python_step_median_us']:>8.3f}"
+        f"{c['python_overhead_us']:>9.3f}"
+    )
+
+
+#: what the cases' `max` column measures
+MAX_NOTE = (
+    "(max: the slowest single cycle of the {cycles} timed, wall clock: where the process is "
+    "not scheduled in real time it includes the operating system preempting it, often "
+    "milliseconds, which the cycle's own work never takes; p99.9 is the cycle's cost)"
+)
+
+
+def _case_notes(r: dict[str, Any]) -> list[str]:
+    lines = [MAX_NOTE.format(cycles=r.get("cycles", "?"))]
     if r.get("numpy_note"):
         lines.append(r["numpy_note"])
-    lines.append("")
-    if r["simulation"]:
-        lines.append(f"{'simulation scenario':<28}{'real-time factor':>18}{'vs MuJoCo alone':>17}"
-                     f"{'controller':>12}{'derived':>10}{'rest vs MuJoCo':>16}")
-        lines.append(f"{'':<28}{'':>18}{'':>17}{'[us/cycle]':>12}{'[%]':>10}{'':>16}")
-        for s in r["simulation"]:
-            lines.append(
-                f"{s['scenario']:<28}{s['realtime_factor']:>17.1f}x"
-                f"{s['overhead_vs_mujoco']:>16.2f}x"
-                f"{s['control_us_per_cycle']:>12.2f}"
-                f"{100 * s['derived_wait_s'] / s['wall_time_s']:>10.0f}"
-                f"{s['loop_overhead_vs_mujoco']:>15.2f}x"
-            )
-        lines.append("(vs MuJoCo alone: the loop's wall time over MuJoCo's for the same steps; "
-                     "controller: the rendering's own time per cycle; derived: the share of the "
-                     "wall time the loop spent on or waited for the log's derived columns "
-                     "(distances from a shape, computed on a second thread alongside the "
-                     "loop); rest vs MuJoCo: "
-                     "the wall time without those two over MuJoCo's)")
+    return lines
+
+
+def _simulation_head() -> list[str]:
+    return [
+        f"{'simulation scenario':<28}{'real-time factor':>18}{'vs MuJoCo alone':>17}"
+        f"{'controller':>12}{'derived':>10}{'rest vs MuJoCo':>16}",
+        f"{'':<28}{'':>18}{'':>17}{'[us/cycle]':>12}{'[%]':>10}{'':>16}",
+    ]
+
+
+def _simulation_line(s: dict[str, Any]) -> str:
+    return (
+        f"{s['scenario']:<28}{s['realtime_factor']:>17.1f}x"
+        f"{s['overhead_vs_mujoco']:>16.2f}x"
+        f"{s['control_us_per_cycle']:>12.2f}"
+        f"{100 * s['derived_wait_s'] / s['wall_time_s']:>10.0f}"
+        f"{s['loop_overhead_vs_mujoco']:>15.2f}x"
+    )
+
+
+#: what the simulation table's columns are
+SIMULATION_NOTE = (
+    "(vs MuJoCo alone: the loop's wall time over MuJoCo's for the same steps; controller: the "
+    "rendering's own time per cycle; derived: the share of the wall time the loop spent on or "
+    "waited for the log's derived columns (distances from a shape, computed on a second "
+    "thread alongside the loop); rest vs MuJoCo: the wall time without those two over "
+    "MuJoCo's)"
+)
+
+
+def _simulation_notes(r: dict[str, Any]) -> list[str]:
+    lines = [SIMULATION_NOTE] if r["simulation"] else []
     if r.get("simulation_note"):
         lines.append(f"simulation: {r['simulation_note']}")
-    return "\n".join(lines)
+    return lines
 
 
-def main(argv: list[str]) -> int:
-    """Entry point of `virtmech bench [--json]`; returns the exit status."""
+def format_table(r: dict[str, Any]) -> str:
+    """The report as a readable table (the lines `collect(show=...)` gives as it goes)."""
+    lines = [*_head(r), *_case_head(), *map(_case_line, r["cases"]), *_case_notes(r), ""]
+    if r["simulation"]:
+        lines += [*_simulation_head(), *map(_simulation_line, r["simulation"])]
+    return "\n".join(lines + _simulation_notes(r))
+
+
+def main(argv: list[str], reference: Any = None) -> int:
+    """Entry point of `virtmech bench [--json]` (and of bench/numpy_baseline.py, which passes
+    the NumPy reference cycle); returns the exit status."""
     p = argparse.ArgumentParser(prog="virtmech bench", description=__doc__.split("\n\n")[0])
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--cycles", type=int, default=DEFAULT_CYCLES,
@@ -505,8 +575,8 @@ def main(argv: list[str]) -> int:
     p.add_argument("--python-cycles", type=int, default=DEFAULT_PYTHON_CYCLES,
                    help=f"timed Python step calls per case (default {DEFAULT_PYTHON_CYCLES})")
     p.add_argument("--numpy-cycles", type=int, default=DEFAULT_NUMPY_CYCLES,
-                   help="timed cycles of the NumPy reference per case, from a source checkout "
-                   f"(default {DEFAULT_NUMPY_CYCLES}; 0: skip)")
+                   help="timed cycles of the NumPy reference per case, where there is one "
+                   f"(bench/numpy_baseline.py; default {DEFAULT_NUMPY_CYCLES}; 0: skip)")
     p.add_argument("--case", action="append", choices=CASES, help="only this case (repeatable)")
     p.add_argument("--no-sim", action="store_true", help="skip the simulation figures")
     p.add_argument("--cpu", type=int, default=None, help="pin the C++ harness to this CPU")
@@ -516,12 +586,21 @@ def main(argv: list[str]) -> int:
     for opt in ("cycles", "python_cycles"):
         if getattr(a, opt) < 1:
             p.error(f"--{opt.replace('_', '-')}: expected >= 1, got {getattr(a, opt)}")
+    # the table's lines as their figures are measured: on stdout, or with --json (one JSON
+    # object on stdout at the end) on stderr
+    stream = sys.stderr if a.json else sys.stdout
+
+    def show(line: str) -> None:
+        print(line, file=stream, flush=True)
+
     try:
-        r = collect(a.cycles, a.python_cycles, a.numpy_cycles, a.case, not a.no_sim, a.cpu)
+        r = collect(a.cycles, a.python_cycles, a.numpy_cycles, a.case, not a.no_sim, a.cpu,
+                    reference=reference, show=show)
     except (FileNotFoundError, RuntimeError) as exc:
         print(f"virtmech bench: {exc}", file=sys.stderr)
         return 1
-    print(json.dumps(r, indent=2) if a.json else format_table(r))
+    if a.json:
+        print(json.dumps(r, indent=2))
     return 0
 
 

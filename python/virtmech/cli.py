@@ -76,75 +76,27 @@ def _require_format(fmt: str) -> None:
             raise UserError(f"--format parquet: {e}") from None
 
 
-def _run_one(
-    scenario,
-    out_dir: Path,
-    seed,
-    progress: bool,
-    fmt: str = "csv",
-    chunk_s: float | None = None,
-) -> dict:
-    """Runs a scenario into out_dir: the log (log.csv or log.parquet) written block by
-    block as the run goes, run.json, the figures; returns the metrics. The metrics and the
-    figures read the log back block by block from a scratch file of the columns they need
-    (removed at the end), so memory stays about one block (`chunk_s` of simulated time,
-    default virtmech.sim.loop.CHUNK_S) however long the run."""
-    from . import sim
-    from .sim.logio import CsvLog, LogFile, ParquetLog, Tee
-    from .sim.loop import CHUNK_S, make_device
-    from .sim.output import LARGE_LOG_BYTES, estimate_log_bytes, metric_columns, metrics, write_run
-    from .viz import write_figures
-    from .viz.figures import FIGURE_COLUMNS
+def _run_one(scenario, out_dir, seed, progress: bool, fmt: str = "csv", chunk_s=None) -> dict:
+    """Runs a scenario into out_dir (checked as --out; virtmech.runner writes the log,
+    run.json and the figures); returns the metrics."""
+    from .runner import run_scenario
 
     out = _out_dir(out_dir)
-    S = scenario.data
-    rows = int(round(S["duration_s"] / S["controller"]["period_s"])) + 1
-    cols = 140  # about: the exact count depends on the device and the mechanism
-    name = f"log.{fmt}"
-    size = estimate_log_bytes(rows, cols, fmt)
-    if size > LARGE_LOG_BYTES:
-        print(
-            f"virtmech: warning: {scenario.name}: {name} will be about {_size(size)} "
-            f"({rows:,} rows of about {cols} columns, {scenario.duration_s:g} s at "
-            f"{1 / S['controller']['period_s']:g} Hz)",
-            file=sys.stderr,
-        )
-    n = make_device(S["device"]).dof
-    keep = list(dict.fromkeys(metric_columns(n) + FIGURE_COLUMNS))
-    writer = ParquetLog(out / name) if fmt == "parquet" else CsvLog(out / name)
-    with writer, LogFile(out, keep) as scratch:
-        result = sim.run(
-            scenario,
-            seed=seed,
-            progress=progress,
-            sink=Tee(writer, scratch),
-            keep_log=False,
-            chunk_s=CHUNK_S if chunk_s is None else chunk_s,
-        )
-        result.source = scratch  # the metrics and the figures read it block by block
-        result.info["log_file"] = name
-        m = metrics(result)
-        write_run(result, out, log=False, metrics=m)
-        write_figures(result, out)
-    return m
-
-
-def _size(n: float) -> str:
-    for unit in ("bytes", "kB", "MB", "GB"):
-        if n < 1000 or unit == "GB":
-            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
-        n /= 1000
-    raise AssertionError  # pragma: no cover
+    return run_scenario(
+        scenario, seed=seed, progress=progress, out=out, fmt=fmt, chunk_s=chunk_s
+    ).metrics
 
 
 def cmd_scenarios(args) -> int:
     from . import scenarios as sc
 
-    for name in sc.names():
+    names = sc.names()  # the paper's figures first, fig9 before fig10
+    w = max(map(len, names))
+    for name in names:
         s = sc.load(name)
         first = " ".join(s.data["description"].split())
         first = first.split(": ", 1)[0]
-        print(f"{name:<16} {s.duration_s:5.1f} s  {first}")
+        print(f"{name:<{w}}  {s.duration_s:5.1f} s  {first}")
     return 0
 
 
@@ -210,8 +162,13 @@ def cmd_run(args) -> int:
     out = Path(args.out) if args.out else Path("out") / s.name
     t0 = time.perf_counter()
     m = _run_one(s, out, args.seed, not args.quiet, args.format)
+    from .viz.figures import SHAPED
+
+    figures = "plane.png, time.png" + (
+        ", scene.png" if s.data["mechanism"]["type"] in SHAPED else ""
+    )
     print(
-        f"{s.name}: wrote {out}/log.{args.format}, run.json, plane.png, time.png "
+        f"{s.name}: wrote {out}/log.{args.format}, run.json, {figures} "
         f"({time.perf_counter() - t0:.2f} s wall)"
     )
     _print_metrics({s.name: m})
@@ -256,15 +213,16 @@ def cmd_quality(args) -> int:
 
     _require_sim("quality")
     s, errors = _set_and_duration(sc.load(args.scenario), args)
-    if s.data["mechanism"]["type"] not in Q.QUALITY_MECHANISMS:
-        errors.append(
-            f"{args.scenario}: mechanism.type {s.data['mechanism']['type']!r}: quality measures "
-            f"{', '.join(Q.QUALITY_MECHANISMS)}"
-        )
-    if (s.data.get("set") or {}).get("members"):
-        errors.append(Q.SET_REFUSED.format(scenario=args.scenario))
+    members = [s.data["mechanism"], *((s.data.get("set") or {}).get("members") or [])]
+    for i, m in enumerate(members):
+        if m["type"] not in Q.QUALITY_MECHANISMS:
+            key = "mechanism" if i == 0 else f"set.members[{i - 1}]"
+            errors.append(
+                f"{args.scenario}: {key}.type {m['type']!r}: quality measures "
+                f"{', '.join(Q.QUALITY_MECHANISMS)}"
+            )
     if not errors:  # what run checks before it simulates, before anything is written
-        from .sim.loop import preflight
+        from .builder import preflight
 
         try:
             preflight(s)
@@ -275,7 +233,7 @@ def cmd_quality(args) -> int:
     out = _out_dir(args.out or Path("out") / f"{s.name}-quality")
     t0 = time.perf_counter()
     grid = (Q.MAP_KP, Q.MAP_KV) if args.map else None
-    result = Q.measure(Q.Setup(s), workers=args.workers, stability_map_grid=grid)
+    result = Q.measure_scenario(s, workers=args.workers, stability_map_grid=grid)
     files = Q.write_report(result, out)
     if args.json:
         print(Q.to_json(result))
@@ -285,32 +243,63 @@ def cmd_quality(args) -> int:
     return 0
 
 
+#: the summary table's columns: metric (virtmech.sim.output.METRICS), heading on two lines
+#: (what, then the unit), width, format, scale from the metric's SI unit
+SUMMARY_COLUMNS = (
+    ("time_to_1mm_s", "to 1 mm", "[s]", 8, ".3f", 1.0),
+    ("dist_max_after_m", "max after", "[mm]", 10, ".3f", 1e3),
+    ("force_max_n", "max |f|", "[N]", 8, ".2f", 1.0),
+    ("torque_fraction_max", "max tau", "/ limit", 8, ".2f", 1.0),
+    ("passive_torque_max", "tau unpowered", "[N·m]", 14, ".2g", 1.0),
+    ("energy_to_user_j", "work on user", "[mJ]", 13, ".2f", 1e3),
+    ("real_time_factor", "x real", "time", 7, ".1f", 1.0),
+)
+
+#: what the summary table's columns say, printed under it
+SUMMARY_NOTES = """\
+to 1 mm: time_to_1mm_s; max after: dist_max_after_m; max |f|: force_max_n; max tau / limit:
+torque_fraction_max; tau unpowered: passive_torque_max, the largest torque on a joint without
+a motor (the Omni's gimbal), 0 as eq. 8 requires; work on user: energy_to_user_j, > 0 where
+the device gave the user energy (the energy tank, on in omni-fig11-passive, keeps it near 0).
+Definitions: docs/scenarios.md, "Distances and metrics"; every metric: run.json, summary.json"""
+
+
 def _print_metrics(runs: dict) -> None:
+    """The runs' headline metrics as a table in the paper's figure order, then what its
+    columns say."""
+    from .scenarios import paper_order
+
     w = max([16, *map(len, runs)])  # the names' column
-    print(
-        f"{'scenario':<{w}} {'to 1 mm [s]':>11} {'max after [mm]':>14} {'max |f| [N]':>11} "
-        f"{'tau/limit':>9} {'passive':>8} {'E [mJ]':>8} {'x real':>7}"
-    )
-    from .sim.output import paper_order
+    head = [f"{'scenario':<{w}}", f"{'':<{w}}"]
+    for _, what, unit, width, _, _ in SUMMARY_COLUMNS:
+        head[0] += f" {what:>{width}}"
+        head[1] += f" {unit:>{width}}"
+    print(head[0])
+    print(head[1])
+    missing: dict[str, list[str]] = {}  # name -> why its n/a cells do not apply
 
-    missing = []
-
-    def cell(v, width: int, fmt: str, scale: float = 1.0) -> str:
+    def cell(name: str, key: str, width: int, fmt: str, scale: float = 1.0) -> str:
+        v = runs[name][key]
         if v is None or v != v:  # None or NaN: the metric does not apply to the run
-            missing.append(v)
+            why = (runs[name].get("notes") or {}).get(key, "")
+            if why not in missing.setdefault(name, []):
+                missing[name].append(why)
             return f"{'n/a':>{width}}"
-        return f"{v * scale:{width}{fmt}}"
+        text = f"{v * scale:{width}{fmt}}"
+        return text.replace("-", " ") if float(text) == 0.0 else text  # no "-0.00"
 
     for name in paper_order(runs):
-        m = runs[name]
         print(
-            f"{name:<{w}} {cell(m['time_to_1mm_s'], 11, '.3f')} "
-            f"{cell(m['dist_max_after_m'], 14, '.3f', 1e3)} {cell(m['force_max_n'], 11, '.2f')} "
-            f"{cell(m['torque_fraction_max'], 9, '.2f')} {cell(m['passive_torque_max'], 8, '.2g')} "
-            f"{cell(m['energy_to_user_j'], 8, '.2f', 1e3)} {cell(m['real_time_factor'], 7, '.1f')}"
+            f"{name:<{w}}"
+            + "".join(
+                f" {cell(name, key, width, fmt, scale)}"
+                for key, _, _, width, fmt, scale in SUMMARY_COLUMNS
+            )
         )
-    if missing:
-        print("n/a: the metric does not apply to that run (its run.json says why)")
+    for name, whys in missing.items():
+        for why in whys:  # the run's notes (run.json), else the general reason
+            print(f"{name}: {why or 'n/a: the metric does not apply to that run'}")
+    print(SUMMARY_NOTES)
 
 
 def cmd_demo(args) -> int:
@@ -431,20 +420,17 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
-
-    p = _Parser(
-        prog="virtmech",
-        description="virtmech: haptic devices rendered as virtual mechanisms (Luecke & Beckman).",
-    )
-    p.add_argument("--version", action="version", version=f"virtmech {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+def _add_demo(sub) -> None:
+    """`virtmech demo`: every shipped scenario and the report."""
     d = sub.add_parser("demo", help="run every shipped scenario and write the report")
     d.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
     d.add_argument("--only", nargs="+", metavar="NAME", help="run only these scenarios")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.add_argument("--format", choices=LOG_FORMATS, default="csv", help=FORMAT_HELP)
+
+
+def _add_run(sub) -> None:
+    """`virtmech run`: one scenario."""
     r = sub.add_parser("run", help="run one scenario (a TOML file or a shipped name)")
     r.add_argument("scenario", help="SCENARIO.toml or a name from `virtmech scenarios`")
     r.add_argument("--out", help="output folder (default: out/<name>)")
@@ -460,6 +446,10 @@ def build_parser() -> argparse.ArgumentParser:
         "(a dotted path; arrays by position: intent.1.force=[0,0,1]; values are TOML; "
         "repeatable)",
     )
+
+
+def _add_sweep(sub) -> None:
+    """`virtmech sweep`: a grid of runs."""
     w = sub.add_parser(
         "sweep", help="run a scenario over a grid of key values in parallel (docs/sweeps.md)"
     )
@@ -495,6 +485,10 @@ def build_parser() -> argparse.ArgumentParser:
         "dist_max_m; one key: six main metrics)",
     )
     w.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _add_quality(sub) -> None:
+    """`virtmech quality`: the rendering measured."""
     qp = sub.add_parser(
         "quality",
         help="measure the rendering: stiffness, forces along free motion, motor work, limit "
@@ -511,6 +505,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--set", action="append", metavar="KEY=VALUE", help="set a scenario key (as run)"
     )
     qp.set_defaults(duration=None)
+
+
+def _add_view(sub) -> None:
+    """`virtmech view`: the live viewer, or a run played back."""
     v = sub.add_parser(
         "view",
         help="a live 3-D viewer in the browser, the mouse as the hand; or a run's log played "
@@ -547,6 +545,19 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument(
         "--seed", type=_seed, help="random seed of the sensor noise (default: the scenario's)"
     )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    p = _Parser(
+        prog="virtmech",
+        description="virtmech: haptic devices rendered as virtual mechanisms (Luecke & Beckman).",
+    )
+    p.add_argument("--version", action="version", version=f"virtmech {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for add in (_add_demo, _add_run, _add_sweep, _add_quality, _add_view):
+        add(sub)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
     sub.add_parser("bench", help="benchmarks (arguments go to virtmech.bench)", add_help=False)

@@ -23,9 +23,7 @@ Every run is independent; `workers` > 1 runs them in a process pool.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from itertools import product
 from typing import Any
@@ -101,10 +99,10 @@ class Run:
 
 def _simulate(raw: dict) -> Run:
     from . import scenarios as sc
-    from .sim import run
+    from .runner import run_scenario
 
     scenario = sc.validate(raw, source=f"quality:{raw.get('name', '?')}")
-    r = run(scenario)
+    r = run_scenario(scenario, keep=_COLUMNS, metrics=False).result
     n = sum(c.startswith("tau") and c[3:].isdigit() for c in r.columns)
     extra = [c for c in ("arm_pos_angle",) if c in r.columns]
     cols = {c: r.col(c) for c in (*_COLUMNS, *extra)}
@@ -115,15 +113,12 @@ def _simulate(raw: dict) -> Run:
 
 def run_all(raws: Sequence[dict], workers: int | None = 1) -> list[Run]:
     """Simulates every raw scenario, in order; workers > 1 (None: the machine's cores) in a
-    process pool."""
-    from .sweep import process_context
+    process pool (virtmech.pool)."""
+    from .pool import run_tasks
 
-    workers = (os.cpu_count() or 1) if workers is None else workers
-    if workers <= 1 or len(raws) <= 1:
-        return [_simulate(r) for r in raws]
-    ctx = process_context(["virtmech.quality", "virtmech.sim.loop"])
-    with ProcessPoolExecutor(min(workers, len(raws)), mp_context=ctx) as ex:
-        return list(ex.map(_simulate, raws))
+    return run_tasks(
+        _simulate, list(raws), workers=workers, preload=["virtmech.quality", "virtmech.runner"]
+    )
 
 
 # ---------------------------------------------------------------------------------------
@@ -148,9 +143,9 @@ class Setup:
         if human:
             self.raw["human"] = {**self.raw.get("human", {}), **human}
         self.mechanism = scenario.data["mechanism"]
-        from .sim.loop import make_mechanism
+        from .builder import build
 
-        self._mech = make_mechanism(self.mechanism)
+        self._mech = build(scenario, simulated=False).mechanism
         self._start: np.ndarray | None = None
 
     def raw_with(
@@ -253,8 +248,8 @@ class Setup:
 
 
 #: why a scenario with a MechanismSet is not measured
-SET_REFUSED = ("{scenario}: set.members: quality measures one mechanism at a time, got a set: "
-               "measure a scenario of each member on its own")
+SET_REFUSED = ("{scenario}: set.members: a Setup measures one mechanism, got a set: "
+               "measure_scenario measures each member (member_scenarios)")
 
 #: the mechanisms the measures know, and those of them that hold the handle (not the tip)
 QUALITY_MECHANISMS = ("PlanarArm", "Probe", "PointPivot", "LineGuide", "SurfaceProbe",
@@ -713,6 +708,44 @@ MAP_KP = (600.0, 1200.0, 2000.0, 3000.0, 4000.0, 5000.0)
 MAP_KV = (0.5, 1.0, 2.0)
 
 
+def member_scenarios(scenario) -> list:
+    """A scenario per member of a set (member 0: the [mechanism]): the set's scenario with
+    [mechanism] that member's table and no [set]; the scenario itself if it has no set."""
+    import copy
+
+    from . import scenarios as sc
+
+    if not isinstance(scenario, sc.Scenario):
+        scenario = sc.load(scenario)
+    raw = copy.deepcopy(scenario.raw)
+    st = raw.pop("set", None) or {}
+    members = st.get("members") or []
+    if not members:
+        return [scenario]
+    return [
+        sc.validate({**raw, "mechanism": m, "name": f"{scenario.name}-member{i}"},
+                    f"{scenario.source} (member {i})")
+        for i, m in enumerate([raw["mechanism"], *members])
+    ]
+
+
+def measure_scenario(
+    scenario,
+    workers: int | None = 1,
+    stability_map_grid: tuple[Sequence[float], Sequence[float]] | None = None,
+) -> dict:
+    """`measure` of a scenario; of a set, of each member on its own (member_scenarios):
+    {"scenario", "members": [each member's measures, with "member" and "mechanism"]}."""
+    parts = member_scenarios(scenario)
+    if len(parts) == 1:
+        return measure(Setup(parts[0]), workers, stability_map_grid)
+    members = []
+    for i, part in enumerate(parts):
+        result = measure(Setup(part), workers, stability_map_grid)
+        members.append({"member": i, "mechanism": part.data["mechanism"]["type"], **result})
+    return {"scenario": parts[0].name.rsplit("-member", 1)[0], "members": members}
+
+
 def measure(
     setup: Setup,
     workers: int | None = 1,
@@ -737,7 +770,13 @@ def measure(
 
 
 def summary_lines(result: dict) -> list[str]:
-    """The report as plain-text lines (the CLI prints them)."""
+    """The report as plain-text lines (the CLI prints them); a set's, member by member."""
+    if "members" in result:
+        lines = [f"{result['scenario']}: rendering quality of each member of the set"]
+        for m in result["members"]:
+            lines.append(f"  member {m['member']} ({m['mechanism']}):")
+            lines += ["  " + line for line in summary_lines(m)[1:]]
+        return lines
     lines = [f"{result['scenario']}: rendering quality"]
     for axis, d in result["stiffness"].items():
         devs = ", ".join(f"{f} N: {v * 1e3:.3f} mm" for f, v in d["deviation_m"].items())
@@ -804,6 +843,24 @@ def write_report(result: dict, out) -> list[str]:
     out.mkdir(parents=True, exist_ok=True)
     files = ["quality.json"]
     (out / "quality.json").write_text(to_json(result) + "\n")
+    parts = result["members"] if "members" in result else [result]
+    for m in parts:
+        suffix = f"-member{m['member']}" if "member" in m else ""
+        files += _figures(m, out, suffix, plt)
+    body = "\n".join(html.escape(line) for line in summary_lines(result))
+    imgs = "".join(f'<p><img src="{f}" alt="{f}"></p>' for f in files if f.endswith(".png"))
+    (out / "index.html").write_text(
+        f"<!doctype html><meta charset='utf-8'><title>{html.escape(result['scenario'])}: "
+        f"quality</title><pre>{body}</pre>{imgs}\n"
+    )
+    files.append("index.html")
+    return files
+
+
+def _figures(result: dict, out, suffix: str, plt) -> list[str]:
+    """fidelity.png and stability_map.png (where measured) of one mechanism's result, their
+    names ending in `suffix`; returns the files written."""
+    files = []
     if "fidelity" in result:
         fig, ax = plt.subplots(figsize=(6, 3.2))
         errs = [result["fidelity"][law]["relative_rms_error"] for law in LAWS]
@@ -811,9 +868,9 @@ def write_report(result: dict, out) -> list[str]:
         ax.set_ylabel("force error / fully actuated (rms)")
         ax.set_title(f"{result['scenario']}: fidelity")
         fig.tight_layout()
-        fig.savefig(out / "fidelity.png", dpi=110)
+        fig.savefig(out / f"fidelity{suffix}.png", dpi=110)
         plt.close(fig)
-        files.append("fidelity.png")
+        files.append(f"fidelity{suffix}.png")
     if "stability_map" in result:
         m = result["stability_map"]
         fig, ax = plt.subplots(figsize=(4.5, 3.6))
@@ -825,14 +882,7 @@ def write_report(result: dict, out) -> list[str]:
         ax.set_ylabel("Kp [N/mm]")
         ax.set_title("free of limit cycles (green)")
         fig.tight_layout()
-        fig.savefig(out / "stability_map.png", dpi=110)
+        fig.savefig(out / f"stability_map{suffix}.png", dpi=110)
         plt.close(fig)
-        files.append("stability_map.png")
-    body = "\n".join(html.escape(line) for line in summary_lines(result))
-    imgs = "".join(f'<p><img src="{f}" alt="{f}"></p>' for f in files if f.endswith(".png"))
-    (out / "index.html").write_text(
-        f"<!doctype html><meta charset='utf-8'><title>{html.escape(result['scenario'])}: "
-        f"quality</title><pre>{body}</pre>{imgs}\n"
-    )
-    files.append("index.html")
+        files.append(f"stability_map{suffix}.png")
     return files

@@ -21,11 +21,12 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .errors import UserError
+from .pool import BACKENDS, TaskFailure, require_ray, run_tasks
+from .runner import run_point
 from .scenarios.overrides import value_text
 
 __all__ = [
@@ -42,8 +43,6 @@ __all__ = [
     "write_sweep",
 ]
 
-#: where the runs go
-BACKENDS = ("process", "ray")
 #: the columns that measure wall-clock time and so differ from one sweep to the next
 TIMING_COLUMNS = ("wall_time_s", "real_time_factor")
 #: the metrics the figures and the printed table show, in this order
@@ -55,7 +54,6 @@ MAIN_METRICS = (
     "torque_fraction_max",
     "energy_to_user_j",
 )
-CLUSTER_HINT = 'pip install "virtmech[cluster]"'
 
 
 def _load(scenario):
@@ -75,14 +73,14 @@ def check_grid(
     scenario, grid: Mapping[str, Sequence[Any]], flag: str = "--grid", errors: Sequence[str] = ()
 ) -> list:
     """Every point of the grid as a validated Scenario, each also built (device, mechanism,
-    controller, start pose: virtmech.sim.loop.preflight) so that no run starts on a point
+    controller, start pose: virtmech.builder.preflight) so that no run starts on a point
     that would fail its checks. Raises one UserError listing every mistake (after
     `errors`, those found before, e.g. values that could not be read): first each value of
     each key on its own (``--grid KEY=VALUE: <file>: <key>: <what was expected>``; values
     of a key with the same mistake in one line), then, only if they all pass, the points
     whose keys conflict."""
     from . import scenarios as sc
-    from .sim.loop import preflight
+    from .builder import preflight
 
     base = _load(scenario)
     malformed = [
@@ -128,135 +126,42 @@ def check_grid(
     return out
 
 
-def run_point(scenario) -> dict[str, Any]:
-    """Runs one point (a validated Scenario) keeping no log; returns {"ok", "error",
-    "metrics"}: a run that fails is reported, not raised. The task of both backends."""
-    from .sim import run
-    from .sim.output import MetricsSink
-
-    try:
-        sink = MetricsSink(scenario)
-        result = run(scenario, progress=False, sink=sink, keep_log=False)
-        return {"ok": True, "error": None, "metrics": sink.metrics(result)}
-    except Exception as e:  # recorded in the table: one failed point must not end the sweep
-        msg = str(e) if isinstance(e, UserError) else f"{type(e).__name__}: {e}"
-        return {"ok": False, "error": msg, "metrics": None}
-
-
 def _require_pyarrow():
     try:
         import pyarrow as pa
     except ImportError:
         raise UserError(
-            "virtmech sweep: the table needs pyarrow, which is not installed; install it with: "
-            "pip install 'virtmech[parquet]' (or " + CLUSTER_HINT + ")"
+            "virtmech sweep: the table needs pyarrow, which is not installed; the [sim] extra "
+            "brings it: pip install 'virtmech[sim]' (or pip install pyarrow)"
         ) from None
     return pa
 
 
-def _require_ray():
-    try:
-        import ray
-    except ImportError:
-        raise UserError(
-            f"--backend ray: Ray is not installed; install it with: {CLUSTER_HINT}"
-        ) from None
-    return ray
-
-
 def _bar(total: int, label: str, enabled: bool):
-    from tqdm import tqdm
+    from .progress import bar
 
-    return tqdm(
-        total=total,
-        desc=label,
-        unit="run",
-        file=sys.stderr,
-        ascii=" #",
-        ncols=80,
-        disable=not enabled,
-        mininterval=0.2 if sys.stderr.isatty() else 5.0,
+    return bar(total, label, "{n:.0f}/{total:.0f} runs", enabled, unit="run", ascii=" #",
+               ncols=80)
+
+
+def _run(scenarios: list, backend: str, workers: int | None, address: str | None, bar):
+    """Every point's run_point in the pool (virtmech.pool), in grid order; a point whose
+    worker died is a failed row like any other."""
+    results = run_tasks(
+        run_point,
+        scenarios,
+        workers=workers,
+        backend=backend,
+        address=address,
+        capture=True,
+        isolate=True,
+        preload=["virtmech.runner", "virtmech.sim.run_loop", "virtmech.sim.output"],
+        on_done=lambda: bar.update(1),
     )
-
-
-def process_context(preload: Sequence[str]):
-    """The multiprocessing context the process pools use: forkserver where there is one
-    (Linux, macOS), each worker forked from a server that has already imported `preload`;
-    spawn elsewhere. Never fork: the parent may hold threads (tqdm's monitor, a host
-    application's)."""
-    import multiprocessing as mp
-
-    if "forkserver" in mp.get_all_start_methods():
-        ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(list(preload))
-        return ctx
-    return mp.get_context("spawn")  # pragma: no cover
-
-
-def _run_process(scenarios: list, workers: int, bar) -> list[dict]:
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    ctx = process_context(["virtmech.sweep", "virtmech.sim.loop", "virtmech.sim.output"])
-    results: list[dict | None] = [None] * len(scenarios)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = {pool.submit(run_point, s): k for k, s in enumerate(scenarios)}
-        for f in as_completed(futures):
-            k = futures[f]
-            try:
-                results[k] = f.result()
-            except Exception as e:  # the worker itself died (e.g. killed): recorded too
-                results[k] = {"ok": False, "error": f"{type(e).__name__}: {e}", "metrics": None}
-            bar.update(1)
-    return results  # type: ignore[return-value]
-
-
-def _run_ray(scenarios: list, workers: int | None, address: str | None, bar) -> list[dict]:
-    ray = _require_ray()
-    started = False
-    if not ray.is_initialized():
-        import logging
-
-        kw: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": False}
-        try:
-            if address:
-                ray.init(address=address, **kw)
-            else:
-                ray.init(include_dashboard=False, **kw)
-        except Exception as e:  # a cluster that cannot be reached: the user's to fix
-            where = f"--address {address}" if address else "--backend ray"
-            raise UserError(
-                f"{where}: cannot start or connect to Ray ({type(e).__name__}: {e}); expected "
-                "the address of a running Ray cluster (ray start --head prints it) or none "
-                "for a local one"
-            ) from None
-        started = True
-    try:
-        task = ray.remote(num_cpus=1, max_retries=0)(run_point)
-        results: list[dict | None] = [None] * len(scenarios)
-        limit = workers or len(scenarios)
-        pending: dict[Any, int] = {}  # at most `limit` tasks at once
-        todo = iter(enumerate(scenarios))
-        for k, s in itertools.islice(todo, limit):
-            pending[task.remote(s)] = k
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            for ref in done:
-                k = pending.pop(ref)
-                try:
-                    results[k] = ray.get(ref)
-                except Exception as e:  # the task or its worker failed: recorded
-                    results[k] = {
-                        "ok": False,
-                        "error": f"{type(e).__name__}: {e}",
-                        "metrics": None,
-                    }
-                bar.update(1)
-                for k_next, s_next in itertools.islice(todo, 1):
-                    pending[task.remote(s_next)] = k_next
-        return results  # type: ignore[return-value]
-    finally:
-        if started:
-            ray.shutdown()
+    return [
+        {"ok": False, "error": r.error, "metrics": None} if isinstance(r, TaskFailure) else r
+        for r in results
+    ]
 
 
 def _column(pa, values: list):
@@ -266,6 +171,15 @@ def _column(pa, values: list):
         return pa.array(values)
     except (pa.ArrowInvalid, pa.ArrowTypeError):
         return pa.array([value_text(v) for v in values])
+
+
+def _metric_value(result: dict, name: str):
+    """A run's metric as the table holds it: None for a failed run or a metric that does not
+    apply (NaN; notes.* says why), an int for `faults`, else a float."""
+    v = result["metrics"][name] if result["metrics"] else None
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return None
+    return int(v) if name == "faults" else float(v)
 
 
 def _table(pa, points: list[dict], results: list[dict]):
@@ -280,14 +194,7 @@ def _table(pa, points: list[dict], results: list[dict]):
     cols["error"] = pa.array([r["error"] for r in results], pa.string())
     for n in names:
         kind = pa.int64() if n == "faults" else pa.float64()
-        vals = []
-        for r in results:
-            v = r["metrics"][n] if r["metrics"] else None
-            if v is None or (isinstance(v, float) and math.isnan(v)):
-                vals.append(None)  # a failed run, or a metric that does not apply (notes.*)
-            else:
-                vals.append(int(v) if n == "faults" else float(v))
-        cols[n] = pa.array(vals, kind)
+        cols[n] = pa.array([_metric_value(r, n) for r in results], kind)
     for n in notes:
         cols[f"notes.{n}"] = pa.array(
             [r["metrics"]["notes"].get(n) if r["metrics"] else None for r in results],
@@ -344,7 +251,7 @@ def check_backend(backend: str, workers: int | None) -> None:
         raise UserError(f"--workers {workers}: expected a whole number >= 1")
     _require_pyarrow()
     if backend == "ray":
-        _require_ray()
+        require_ray()
 
 
 def run_grid(
@@ -363,13 +270,11 @@ def run_grid(
     points = grid_points(grid)
     if len(points) != len(scenarios):
         raise ValueError(f"run_grid: {len(scenarios)} scenarios for {len(points)} points")
-    n_workers = min(len(points), int(workers) if workers else (os.cpu_count() or 1))
+    if backend == "process" and not workers:
+        workers = os.cpu_count() or 1
     bar = _bar(len(points), f"{name} sweep", progress)
     try:
-        if backend == "process":
-            results = _run_process(scenarios, n_workers, bar)
-        else:
-            results = _run_ray(scenarios, workers, address, bar)
+        results = _run(scenarios, backend, workers, address, bar)
     finally:
         bar.close()
     table = _table(pa, points, results)
@@ -414,7 +319,7 @@ def format_table(table, keys: list[str]) -> str:
 
 
 def _versions(backend: str) -> dict:
-    from .sim.loop import versions
+    from .sim.log import versions
 
     out = dict(versions())
     import pyarrow
@@ -469,6 +374,71 @@ def _float(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
+def _label(m: str) -> str:
+    from .sim.output import METRICS
+
+    return f"{m} [{METRICS[m][0]}]" if m in METRICS else m
+
+
+def _metrics_figure(plt, data: dict, key: str, name: str):
+    """One key: each main metric against the key's values (a numeric key on its axis, any
+    other as labels)."""
+    xs = data[key]
+    numeric = _numeric(xs)
+    pos = xs if numeric else list(range(len(xs)))
+    fig, axes = plt.subplots(2, 3, figsize=(11, 6.5), constrained_layout=True)
+    for ax, m in zip(axes.ravel(), MAIN_METRICS):
+        # categories (strings, lists) are not on a scale: points, not a line
+        ax.plot(pos, [_float(v) for v in data[m]], "o-" if numeric else "o", color="C0")
+        ax.set_title(_label(m), fontsize=10)
+        ax.grid(True, alpha=0.3)
+        ax.set_xlabel(key)
+        if not numeric:
+            ax.set_xticks(pos, [value_text(x) for x in xs], rotation=30, fontsize=8)
+    fig.suptitle(f"{name}: the metrics against {key}")
+    return fig
+
+
+def _heat_map(plt, data: dict, keys: list[str], metric: str, name: str):
+    """Two keys: a heat map of `metric` over the two, each cell labelled."""
+    import numpy as np
+
+    ky, kx = keys
+    ys = list(dict.fromkeys(value_text(v) for v in data[ky]))
+    xs = list(dict.fromkeys(value_text(v) for v in data[kx]))
+    Z = np.full((len(ys), len(xs)), math.nan)
+    for y, x, v in zip(data[ky], data[kx], data[metric]):
+        Z[ys.index(value_text(y)), xs.index(value_text(x))] = _float(v)
+    fig, ax = plt.subplots(figsize=(1.2 * len(xs) + 3.5, 0.8 * len(ys) + 2.5))
+    im = ax.imshow(np.ma.masked_invalid(Z), origin="lower", aspect="auto", cmap="viridis")
+    ax.set_xticks(range(len(xs)), xs, rotation=30 if len(xs) > 4 else 0)
+    ax.set_yticks(range(len(ys)), ys)
+    ax.set_xlabel(kx)
+    ax.set_ylabel(ky)
+    finite_z = Z[np.isfinite(Z)]
+    mid = float(np.mean([finite_z.min(), finite_z.max()])) if finite_z.size else 0.0
+    for (i, j), v in np.ndenumerate(Z):
+        finite = math.isfinite(v)
+        ax.text(j, i, f"{v:.3g}" if finite else "n/a", ha="center", va="center", fontsize=8,
+                color="white" if finite and v < mid else "black")
+    fig.colorbar(im, ax=ax, label=_label(metric))
+    ax.set_title(f"{name}: {metric}")
+    fig.tight_layout()
+    return fig
+
+
+def _points_figure(plt, data: dict, keys: list[str], metric: str, name: str):
+    """More keys: `metric` at each point."""
+    fig, ax = plt.subplots(figsize=(max(6, 0.4 * len(data["point"]) + 2), 4))
+    ax.plot(data["point"], [_float(v) for v in data[metric]], "o-")
+    ax.set_xlabel("grid point (sweep.parquet's point column)")
+    ax.set_ylabel(_label(metric))
+    ax.grid(True, alpha=0.3)
+    ax.set_title(f"{name}: {metric}\nat each point of {' x '.join(keys)}", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def write_figure(table, keys: list[str], path, metric: str = "dist_max_m") -> None:
     """sweep.png. One key: each main metric against the key's values (a numeric key on its
     axis, any other as labels). Two keys: a heat map of `metric` over the two. More: `metric`
@@ -478,69 +448,14 @@ def write_figure(table, keys: list[str], path, metric: str = "dist_max_m") -> No
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .sim.output import METRICS
-
     data = table.to_pydict()
     meta = table.schema.metadata or {}
     name = meta.get(b"virtmech.scenario", b"").decode()
-
-    def label(m: str) -> str:
-        return f"{m} [{METRICS[m][0]}]" if m in METRICS else m
-
     if len(keys) == 1:
-        key = keys[0]
-        xs = data[key]
-        numeric = _numeric(xs)
-        pos = xs if numeric else list(range(len(xs)))
-        fig, axes = plt.subplots(2, 3, figsize=(11, 6.5), constrained_layout=True)
-        for ax, m in zip(axes.ravel(), MAIN_METRICS):
-            # categories (strings, lists) are not on a scale: points, not a line
-            ax.plot(pos, [_float(v) for v in data[m]], "o-" if numeric else "o", color="C0")
-            ax.set_title(label(m), fontsize=10)
-            ax.grid(True, alpha=0.3)
-            ax.set_xlabel(key)
-            if not numeric:
-                ax.set_xticks(pos, [value_text(x) for x in xs], rotation=30, fontsize=8)
-        fig.suptitle(f"{name}: the metrics against {key}")
+        fig = _metrics_figure(plt, data, keys[0], name)
     elif len(keys) == 2:
-        import numpy as np
-
-        ky, kx = keys
-        ys = list(dict.fromkeys(value_text(v) for v in data[ky]))
-        xs = list(dict.fromkeys(value_text(v) for v in data[kx]))
-        Z = np.full((len(ys), len(xs)), math.nan)
-        for y, x, v in zip(data[ky], data[kx], data[metric]):
-            Z[ys.index(value_text(y)), xs.index(value_text(x))] = _float(v)
-        fig, ax = plt.subplots(figsize=(1.2 * len(xs) + 3.5, 0.8 * len(ys) + 2.5))
-        im = ax.imshow(np.ma.masked_invalid(Z), origin="lower", aspect="auto", cmap="viridis")
-        ax.set_xticks(range(len(xs)), xs, rotation=30 if len(xs) > 4 else 0)
-        ax.set_yticks(range(len(ys)), ys)
-        ax.set_xlabel(kx)
-        ax.set_ylabel(ky)
-        finite_z = Z[np.isfinite(Z)]
-        mid = float(np.mean([finite_z.min(), finite_z.max()])) if finite_z.size else 0.0
-        for i in range(len(ys)):
-            for j in range(len(xs)):
-                v = Z[i, j]
-                ax.text(
-                    j,
-                    i,
-                    "n/a" if not math.isfinite(v) else f"{v:.3g}",
-                    ha="center",
-                    va="center",
-                    fontsize=8,
-                    color="white" if math.isfinite(v) and v < mid else "black",
-                )
-        fig.colorbar(im, ax=ax, label=label(metric))
-        ax.set_title(f"{name}: {metric}")
-        fig.tight_layout()
+        fig = _heat_map(plt, data, keys, metric, name)
     else:
-        fig, ax = plt.subplots(figsize=(max(6, 0.4 * len(data["point"]) + 2), 4))
-        ax.plot(data["point"], [_float(v) for v in data[metric]], "o-")
-        ax.set_xlabel("grid point (sweep.parquet's point column)")
-        ax.set_ylabel(label(metric))
-        ax.grid(True, alpha=0.3)
-        ax.set_title(f"{name}: {metric}\nat each point of {' x '.join(keys)}", fontsize=10)
-        fig.tight_layout()
+        fig = _points_figure(plt, data, keys, metric, name)
     fig.savefig(path, dpi=110)
     plt.close(fig)

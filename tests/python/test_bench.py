@@ -59,25 +59,36 @@ def test_cycle_allocates_nothing_in_every_case(report):
         assert case["allocations"] == 0, case["name"]
 
 
-def test_numpy_reference_is_found_in_the_source_checkout(monkeypatch):
-    monkeypatch.chdir(Path(__file__).resolve().parents[2])
-    reference, note = bench.load_reference()
-    assert reference is not None and note == ""
+def test_the_numpy_reference_has_every_case():
+    import reference
+
     assert set(reference.CASES) == set(bench.CASES)
 
 
-def test_numpy_column_is_skipped_with_a_note_outside_a_checkout(tmp_path):
-    reference, note = bench.load_reference([tmp_path])
-    assert reference is None and "source checkout" in note
+def test_the_installed_bench_skips_the_numpy_column_with_a_note():
+    # the package ships no NumPy reference: without one passed in, the column is empty
+    r = bench.collect(cycles=200, python_cycles=20, numpy_cycles=10, simulation=False,
+                      cases=["omni+probe"])
+    assert r["numpy_note"] == bench.NO_REFERENCE
+    assert all(r["cases"][0][f] is None for f in NUMPY_FIELDS)
+
+
+def test_the_package_imports_nothing_from_the_tests():
+    # nothing shipped depends on the tests: no module of the package names tests/reference
+    root = Path(bench.__file__).resolve().parent
+    for path in root.rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        assert "import reference" not in text and '"tests"' not in text, path
 
 
 @pytest.mark.slow
-def test_numpy_column_times_the_reference_and_gives_the_core_torques(monkeypatch):
+def test_numpy_column_times_the_reference_and_gives_the_core_torques():
     # the placements of omni+probe and omni+planar_arm are closed forms in the core (always
     # converged): the reference, converged on its own, gives the same torques
-    monkeypatch.chdir(Path(__file__).resolve().parents[2])
+    import reference
+
     r = bench.collect(cycles=1000, python_cycles=30, numpy_cycles=30, simulation=False,
-                      cases=["omni+probe", "omni+planar_arm"])
+                      cases=["omni+probe", "omni+planar_arm"], reference=reference)
     assert "numpy_note" not in r
     for case in r["cases"]:
         assert case["numpy_cycles"] == 30
@@ -101,6 +112,43 @@ def test_main_prints_a_table(capsys):
     text = capsys.readouterr().out
     assert "planar3r+planar_arm" in text and "median" in text
     assert "NumPy column skipped" in text
+
+
+def test_each_cases_line_is_shown_as_soon_as_it_is_measured(monkeypatch):
+    events = []
+    measure = bench.python_step
+
+    def python_step(case, cycles):
+        events.append(("measure", case.name))
+        return measure(case, cycles)
+
+    monkeypatch.setattr(bench, "python_step", python_step)
+    names = ["omni+probe", "planar3r+planar_arm"]
+    r = bench.collect(cycles=500, python_cycles=20, numpy_cycles=0, simulation=False,
+                      cases=names, show=lambda line: events.append(("line", line)))
+    shown = {n: next(i for i, (k, v) in enumerate(events) if k == "line" and v.startswith(n))
+             for n in names}
+    measured = {n: events.index(("measure", n)) for n in names}
+    heading = next(i for i, (k, v) in enumerate(events) if k == "line" and "median" in v)
+    assert heading < measured[names[0]] < shown[names[0]] < measured[names[1]] < shown[names[1]]
+    lines = [v for k, v in events if k == "line"]
+    assert "\n".join(lines) == bench.format_table(r)  # the same table, line by line
+
+
+def test_the_table_says_what_its_max_column_measures(capsys):
+    assert bench.main(["--cycles", "500", "--python-cycles", "20", "--numpy-cycles", "0",
+                       "--case", "omni+probe", "--no-sim"]) == 0
+    text = capsys.readouterr().out
+    assert "(max: the slowest single cycle of the 500 timed" in text
+    assert "preempting" in text and "p99.9 is the cycle's cost" in text
+
+
+def test_with_json_the_lines_go_to_stderr_and_the_object_to_stdout(capsys):
+    assert bench.main(["--json", "--cycles", "500", "--python-cycles", "20",
+                       "--numpy-cycles", "0", "--case", "omni+probe", "--no-sim"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["cases"][0]["name"] == "omni+probe"
+    assert any(line.startswith("omni+probe") for line in err.splitlines())
 
 
 def test_main_rejects_a_bad_cycle_count():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import subprocess
 import sys
 import types
@@ -39,6 +40,23 @@ def test_scenarios_lists_the_shipped_ones(capsys):
     out = capsys.readouterr().out
     for name in sc.names():
         assert name in out
+
+
+def test_scenarios_are_listed_aligned_in_the_papers_figure_order(capsys):
+    import re
+
+    assert main(["scenarios"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    names = [ln.split()[0] for ln in lines]
+    assert sorted(names) == sorted(p.stem for p in sc.DATA.glob("*.toml"))
+    assert names[:5] == ["omni-fig9", "omni-fig10", "omni-fig11", "omni-fig11-passive",
+                         "omni-fig12"]
+    assert names[5:9] == [f"planar3r-fig{k}" for k in (9, 10, 11, 12)]
+    others = names[9:]
+    assert others == sorted(others) and "arm7-contact" in others
+    # the durations stand in one column, however long the name
+    ends = {re.search(r"\d\.\d s ", ln).end() for ln in lines}
+    assert len(ends) == 1
 
 
 def test_run_writes_log_and_run_json(tmp_path, capsys):
@@ -138,10 +156,65 @@ def test_import_virtmech_does_not_import_mujoco_or_matplotlib():
     assert p.stdout.strip() == "[]"
 
 
-def test_run_shows_a_progress_bar_on_stderr(tmp_path, capsys):
+class _Terminal:
+    """stderr as a terminal: a stream whose isatty() is true, its text kept."""
+
+    def __init__(self):
+        import io
+
+        self.buffer = io.StringIO()
+
+    def isatty(self) -> bool:
+        return True
+
+    def write(self, text: str) -> int:
+        return self.buffer.write(text)
+
+    def flush(self) -> None:
+        pass
+
+
+def test_run_shows_a_progress_bar_on_a_terminal(tmp_path, monkeypatch):
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
     assert main(["run", "planar3r-fig9", "--duration", "0.2", "--out", str(tmp_path)]) == 0
-    err = capsys.readouterr().err
-    assert "planar3r-fig9" in err and "100%" in err and "#" in err
+    err = term.buffer.getvalue()
+    assert "planar3r-fig9" in err and "100%" in err and "#" in err and "\r" in err
+
+
+def test_redirected_progress_is_whole_lines_without_carriage_returns(tmp_path):
+    p = _cli("run", "planar3r-fig9", "--duration", "2.5", "--out", str(tmp_path),
+             code="import virtmech.progress as P; P.LINE_INTERVAL_S = 0.0")
+    assert p.returncode == 0, p.stderr
+    assert "\r" not in p.stderr and "\x1b" not in p.stderr  # no bar, no terminal codes
+    lines = p.stderr.splitlines()
+    assert len(lines) >= 3  # a line per update (every 1000 cycles here), then the summary
+    for line in lines[:-1]:
+        assert line.startswith("planar3r-fig9  ") and line.endswith(" s"), line
+    assert lines[-2].startswith("planar3r-fig9  100%  2.50/2.50 s")
+    assert lines[-1].startswith("planar3r-fig9: 2.50 s simulated in ")
+
+
+def test_a_short_redirected_run_prints_only_its_summary_line(tmp_path):
+    p = _cli("run", "planar3r-fig9", "--duration", "0.2", "--out", str(tmp_path))
+    assert p.returncode == 0, p.stderr
+    assert p.stderr.splitlines() == [p.stderr.strip()]
+    assert p.stderr.startswith("planar3r-fig9: 0.20 s simulated in ")
+
+
+def test_a_sweeps_redirected_progress_is_a_line_per_run(monkeypatch, capsys):
+    import virtmech.progress as P
+    from virtmech.sweep import _bar
+
+    monkeypatch.setattr(P, "LINE_INTERVAL_S", 0.0)
+    bar = _bar(3, "omni-fig10 sweep", True)
+    for _ in range(3):
+        bar.update(1)
+    bar.close()
+    assert capsys.readouterr().err.splitlines() == [
+        f"omni-fig10 sweep  {p:3.0f}%  {k}/3 runs" for k, p in ((1, 100 / 3), (2, 200 / 3),
+                                                                (3, 100))
+    ]
 
 
 # ---------------------------------------------------------------------------------------
@@ -182,11 +255,42 @@ def test_without_the_sim_extra_says_how_to_install_it(argv, tmp_path):
     assert not (tmp_path / "omni-fig9").exists()
 
 
+def test_the_sim_extra_brings_what_sweep_needs_and_the_readme_says_so(tmp_path):
+    from pathlib import Path
+
+    tomllib = pytest.importorskip("tomllib")
+    root = Path(__file__).resolve().parents[2]
+    extras = tomllib.loads((root / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"]
+    names = {re.split(r"[<>=;\[ ]", d)[0] for d in extras["sim"]}
+    assert {"mujoco", "matplotlib", "tqdm", "pyarrow"} <= names
+    assert {re.split(r"[<>=;\[ ]", d)[0] for d in extras["view"]} >= names  # view has [sim]
+    readme = (root / "README.md").read_text()
+    line = next(ln for ln in readme.splitlines() if ln.startswith('pip install ".[sim]"'))
+    assert all(n in line for n in ("MuJoCo", "matplotlib", "tqdm", "pyarrow")), line
+    # without pyarrow, sweep says that [sim] brings it: one line, exit status 2
+    p = _cli("sweep", "planar3r-fig9", "--grid", "human.damping=2,6", "--quiet",
+             "--out", str(tmp_path), code="sys.modules['pyarrow'] = None")
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert "pyarrow" in p.stderr and "pip install 'virtmech[sim]'" in p.stderr
+
+
 def test_a_zero_normal_names_the_file_and_the_key(tmp_path, capsys):
     bad = _scenario(tmp_path, "normal = [0.0, 0.0, 1.0]", "normal = [0, 0, 0]")
     err = _mistake(capsys, ["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"])
     assert f"{bad}: mechanism.normal: value [0, 0, 0] is out of range" in err
     assert "non-zero" in err
+
+
+def test_a_direction_written_to_three_digits_runs(tmp_path, capsys):
+    # |[0.342, 0.940, 0]| = 1.00028: read as its unit vector, as docs/scenarios.md says
+    out = tmp_path / "o"
+    argv = ["run", "omni-contact", "--set", "mechanism.plane_normal=[0.342,0.940,0.0]"]
+    assert main([*argv, "--duration", "0.05", "--quiet", "--out", str(out)]) == 0
+    n = json.loads((out / "run.json").read_text())["scenario"]["mechanism"]["plane_normal"]
+    v = np.array([0.342, 0.940, 0.0])
+    np.testing.assert_allclose(n, v / np.linalg.norm(v), rtol=0, atol=1e-15)
 
 
 def test_a_value_the_constructors_reject_names_the_file_and_the_key(tmp_path, capsys):
@@ -291,9 +395,9 @@ def test_the_log_streams_in_blocks_and_keeps_none_in_memory(tmp_path):
 
 def test_a_large_log_is_kept_in_a_file_not_in_memory(tmp_path, monkeypatch):
     from virtmech import sim
-    from virtmech.sim import loop
+    from virtmech.sim import log as simlog
 
-    monkeypatch.setattr(loop, "LOG_IN_MEMORY_BYTES", 0)
+    monkeypatch.setattr(simlog, "LOG_IN_MEMORY_BYTES", 0)
     s = sc.load("planar3r-fig9").with_overrides(duration_s=0.2)
     r = sim.run(s, spill_dir=tmp_path, chunk_s=0.05)
     assert isinstance(r.log, np.memmap) and r.log.shape[0] == 201
@@ -311,9 +415,12 @@ def test_a_log_over_the_limit_is_warned_about_with_its_size(tmp_path, capsys, mo
     assert "warning: planar3r-fig9: log.csv will be about" in err and "kB" in err
 
 
-def test_progress_percentages_match_the_simulated_time(tmp_path, capsys):
+def test_progress_percentages_match_the_simulated_time(tmp_path, capsys, monkeypatch):
     import re
 
+    import virtmech.progress as P
+
+    monkeypatch.setattr(P, "LINE_INTERVAL_S", 0.0)  # a line per update
     assert main(["run", "planar3r-fig9", "--duration", "2.5", "--out", str(tmp_path)]) == 0
     err = capsys.readouterr().err
     shown = re.findall(r"(\d+)%\s+([\d.]+)/([\d.]+) s", err)
@@ -354,9 +461,36 @@ def test_metrics_table_is_in_paper_order_and_says_na(capsys):
         {"omni-fig12": m, "omni-fig10": dict(m, time_to_1mm_s=float("nan")), "omni-fig9": m}
     )
     lines = capsys.readouterr().out.splitlines()
-    assert [ln.split()[0] for ln in lines[1:4]] == ["omni-fig9", "omni-fig10", "omni-fig12"]
-    assert lines[2].split()[1] == "n/a" and "nan" not in "".join(lines)
-    assert lines[-1].startswith("n/a:")
+    assert [ln.split()[0] for ln in lines[2:5]] == ["omni-fig9", "omni-fig10", "omni-fig12"]
+    assert lines[3].split()[1] == "n/a" and "nan" not in "".join(lines)
+    assert lines[5] == "omni-fig10: n/a: the metric does not apply to that run"
+
+
+def test_the_summary_tables_columns_are_named_for_what_they_show(capsys):
+    from virtmech.cli import _print_metrics
+
+    m = dict(time_to_1mm_s=0.25, dist_max_after_m=0.0009, force_max_n=1.5,
+             torque_fraction_max=0.42, passive_torque_max=0.0, energy_to_user_j=-2e-6,
+             real_time_factor=25.0)
+    letter = dict(m, time_to_1mm_s=float("nan"), dist_max_after_m=float("nan"),
+                  notes={"time_to_1mm_s": "n/a: the tip ended 2.47 mm from the curve",
+                         "dist_max_after_m": "n/a: the tip ended 2.47 mm from the curve"})
+    _print_metrics({"omni-fig11-passive": m, "omni-letter": letter})
+    lines = capsys.readouterr().out.splitlines()
+    head, units, row = lines[0], lines[1], lines[2]
+    assert "passive" not in head  # the gimbal's torque is not the energy tank
+    # each value ends where its heading and its unit end (right-aligned columns)
+    for what, unit, value in (("tau unpowered", "[N·m]", "0"), ("work on user", "[mJ]", "0.00"),
+                              ("max after", "[mm]", "0.900"), ("to 1 mm", "[s]", "0.250")):
+        end = head.index(what) + len(what)
+        assert units[end - len(unit) : end] == unit
+        assert row[end - len(value) : end] == value and row[end - len(value) - 1] == " "
+    assert "-0.00" not in row  # -2 uJ is shown as 0.00 mJ, without a sign
+    # the letter's n/a cells say why, once, from its notes
+    assert lines.count("omni-letter: n/a: the tip ended 2.47 mm from the curve") == 1
+    text = "\n".join(lines[4:])
+    assert "tau unpowered: passive_torque_max" in text and "eq. 8" in text
+    assert "work on user: energy_to_user_j" in text and "omni-fig11-passive" in text
 
 
 def test_run_holds_one_block_at_a_time_through_metrics_and_figures(tmp_path, monkeypatch):

@@ -14,10 +14,11 @@ import virtmech as vm
 
 mujoco = pytest.importorskip("mujoco")
 
+from virtmech.builder import make_device  # noqa: E402
 from virtmech.scenarios import ScenarioError, json_schema, load, validate  # noqa: E402
-from virtmech.sim import inner, loop  # noqa: E402
+from virtmech.sim import inner, run  # noqa: E402
+from virtmech.sim import model as simmodel  # noqa: E402
 from virtmech.sim.human import PLAN_INDEX, HandImpedance, Intent, plan_slice  # noqa: E402
-from virtmech.sim.loop import run  # noqa: E402
 from virtmech.sim.model import HandBody  # noqa: E402
 
 G = 9.81
@@ -90,7 +91,7 @@ def test_a_pure_moment_pushes_no_force_and_the_given_moment_ramped():
     s2 = s.with_overrides(intent=[{**seg, "force_frame": "handle"}])
     r2 = run(s2)
     k = int(np.argmin(np.abs(r2.t - 0.1)))
-    dev = loop.make_device(s2.data["device"])
+    dev = make_device(s2.data["device"])
     R_h = np.asarray(dev.forward(r2.cols(*[f"q{i}" for i in range(6)])[k]))[:3, :3]
     np.testing.assert_allclose(r2.cols("mhx", "mhy", "mhz")[k], R_h @ M, atol=1e-12)
 
@@ -322,12 +323,12 @@ def test_release_from_the_start_is_a_model_built_without_the_hand(monkeypatch):
         duration_s=0.3, intent=[{"action": "release", "start_s": 0.0}]
     )
     a = run(s)
-    build = loop.build_mjcf
+    build = simmodel.build_mjcf
 
     def without_hand(*args, **kw):
         return build(*args, **{**kw, "hand": HandBody(0.0, 0.0)})
 
-    monkeypatch.setattr(loop, "build_mjcf", without_hand)
+    monkeypatch.setattr(simmodel, "build_mjcf", without_hand)
     b = run(s)
     assert "hand" in a.info["mjcf"] and 'name="hand"' not in b.info["mjcf"]
     np.testing.assert_allclose(a.log, b.log, rtol=0, atol=1e-12)
@@ -359,13 +360,13 @@ def test_taking_hold_again_starts_the_anchor_from_the_handle():
 
 def test_taking_hold_again_restores_the_models_constants(monkeypatch):
     models = []
-    compile_model = loop.compile_model
+    compile_model = simmodel.compile_model
 
     def keep(built):
         models.append(compile_model(built))
         return models[-1]
 
-    monkeypatch.setattr(loop, "compile_model", keep)
+    monkeypatch.setattr(simmodel, "compile_model", keep)
     hold = {"action": "hold", "start_s": 0.0, "duration_s": 0.0}
     s = load("omni-fig10").with_overrides(duration_s=0.06, intent=[hold])
     run(s)  # never released: the compiled constants
@@ -425,16 +426,16 @@ def test_after_a_release_the_handle_moves_as_on_a_model_built_without_the_hand()
     )  # fmt: skip
     r = run(s)
     S = s.data
-    device = loop.make_device(S["device"])
+    device = make_device(S["device"])
     nsub = int(round(S["physics"]["rate_hz"] * T))
-    built = loop.build_mjcf(
+    built = simmodel.build_mjcf(
         device,
-        params=loop.device_physics(S["device"]),
+        params=simmodel.device_physics(S["device"]),
         hand=HandBody(0.0, 0.0),
-        gravity=loop.world_gravity(device),
+        gravity=simmodel.world_gravity(device),
         timestep=T / nsub,
     )
-    m = loop.compile_model(built)
+    m = simmodel.compile_model(built)
     assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "hand") == -1
     d = mujoco.MjData(m)
     C, c0 = built.coupling.C, built.coupling.c0
@@ -450,3 +451,18 @@ def test_after_a_release_the_handle_moves_as_on_a_model_built_without_the_hand()
             mujoco.mj_step(m, d)
         np.testing.assert_allclose(np.linalg.solve(C, d.qpos - c0), q[k + 1], atol=1e-9)
     assert np.ptp(q[k0 : k0 + 100, 0]) > 1e-3  # it moved
+
+
+def test_a_push_the_physics_cannot_integrate_ends_the_run_with_a_clear_error(tmp_path):
+    # a hand pushing with 1e6 N: MuJoCo's state diverges and is reset; the run stops with a
+    # message naming the scenario and when, instead of logging the reset state
+    from virtmech.sim.run_loop import SimulationUnstable
+
+    s = load("omni-fig10").with_keys({"intent.0.force": [1e6, 0.0, 0.0]})
+    with pytest.raises(SimulationUnstable, match=r"unstable between t = 0\.000 and 1\.000 s"):
+        run(s.with_overrides(duration_s=1.5))
+    from virtmech.cli import main
+
+    out = tmp_path / "o"
+    assert main(["run", "omni-fig10", "--set", "intent.0.force=[1e6,0,0]", "--out", str(out),
+                 "--quiet", "--duration", "0.5"]) == 2

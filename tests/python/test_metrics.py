@@ -154,7 +154,7 @@ def test_report_is_in_the_papers_figure_order_with_version_and_definitions(tmp_p
     from virtmech.sim.output import METRICS
     from virtmech.viz import write_index
 
-    names = sc.names()  # sorted as strings: fig10 before fig9
+    names = sorted(sc.names())  # sorted as strings: fig10 before fig9
     nan = dict.fromkeys(METRICS, math.nan)
     entries = [
         {"name": n, "description": n, "dir": n, "metrics": {**nan, "notes": {}}} for n in names
@@ -168,6 +168,12 @@ def test_report_is_in_the_papers_figure_order_with_version_and_definitions(tmp_p
     for name in METRICS:
         assert f"<code>{name}</code>" in page
     assert ">nan<" not in page.lower() and "n/a" in page
+    # the gimbal's torque is named for what it is, not mistaken for passivity
+    assert "<th>max torque on unpowered joints [N·m]</th>" in page
+    assert "passive torque" not in page
+    entries[0]["metrics"]["energy_to_user_j"] = -1e-7  # -0.0001 mJ
+    page = write_index(tmp_path, entries).read_text()
+    assert "<td>-0.00</td>" not in page and "<td>0.00</td>" in page
 
 
 def test_summary_is_in_the_papers_figure_order(tmp_path):

@@ -5,6 +5,7 @@ the device's Kp."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -111,14 +112,39 @@ def run_cli(*args):
     )
 
 
-def test_cli_refuses_a_set_by_its_key(tmp_path):
-    r = run_cli("quality", "omni-snap", "--out", str(tmp_path / "q"))
-    assert r.returncode == 2
-    assert "set.members" in r.stderr and "Traceback" not in r.stderr
-    assert not (tmp_path / "q").exists()
+def test_a_set_is_measured_member_by_member():
+    # omni-snap's two line guides: each member measured on its own, as a scenario of that
+    # member alone would be (member 0's figures equal a direct measure of its scenario)
+    import virtmech.scenarios as sc
+
+    parts = Q.member_scenarios("omni-snap")
+    raw = sc.load("omni-snap").raw
+    assert [p.data["mechanism"]["type"] for p in parts] == ["LineGuide", "LineGuide"]
+    assert [p.raw["mechanism"] for p in parts] == [raw["mechanism"], *raw["set"]["members"]]
+    assert all("set" not in p.raw for p in parts)
+    s = Q.Setup(parts[1])
+    rest = s.start()
+    across = s.constrained_axes(rest)
+    assert set(across) == {"across 1", "across 2"}
+    d = np.asarray(parts[1].data["mechanism"]["direction"], dtype=float)
+    for axis in across.values():  # across the member's own line
+        assert abs(axis @ d) < 1e-12
 
 
-def test_the_library_refuses_a_set_too():
+def test_cli_measures_a_set_and_writes_each_members_report(tmp_path):
+    r = run_cli("quality", "omni-snap", "--out", str(tmp_path / "q"), "--json")
+    assert r.returncode == 0, r.stderr
+    result = json.loads(r.stdout)
+    assert [m["member"] for m in result["members"]] == [0, 1]
+    for m in result["members"]:
+        assert m["mechanism"] == "LineGuide"
+        for axis in m["stiffness"].values():  # each guide renders stiffly across its line
+            assert axis["stiffness_n_per_m"] > 500.0
+    assert (tmp_path / "q" / "fidelity-member0.png").is_file()
+    assert (tmp_path / "q" / "fidelity-member1.png").is_file()
+
+
+def test_the_library_refuses_a_set_in_one_setup():
     with pytest.raises(ValueError, match="set.members"):
         Q.Setup("omni-snap")
 

@@ -184,3 +184,69 @@ def test_the_json_schema_has_every_default_of_the_format():
         for key, value in s[table].items():
             if "default" in props[key]:
                 assert props[key]["default"] == value, (table, key)
+
+
+PROBE = GOOD.replace(
+    'type = "PlanarArm"\npivot = [-0.07, 0.04, 0.0]\nlength = 0.08',
+    'type = "Probe"\nplane_point = [0.0, -0.07, 0.0]\nplane_normal = NORMAL\nlength = 0.08',
+)
+
+
+@pytest.mark.parametrize(
+    "normal",
+    [
+        [0.342, 0.940, 0.0],  # norm 1.00028: a unit vector written to three digits
+        [1.0, 2.747, 0.0],
+        [0.0, 3.0, 0.0],
+        [1e-200, 0.0, 0.0],  # squares underflow
+        [1e300, 1e300, -1e300],  # squares overflow
+        [0, 2, 1],  # integers
+    ],
+)
+def test_a_direction_of_any_length_is_read_as_its_unit_vector(normal):
+    import numpy as np
+
+    s = sc.loads(PROBE.replace("NORMAL", str(normal)))
+    v = np.array(normal, dtype=float)
+    expected = (v / np.abs(v).max()) / np.linalg.norm(v / np.abs(v).max())
+    got = s["mechanism"]["plane_normal"]
+    assert all(isinstance(x, float) for x in got)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=2e-16)
+    assert abs(np.linalg.norm(got) - 1.0) < 3e-16
+    assert s.raw["mechanism"]["plane_normal"] == normal  # the file's own numbers kept
+
+
+def test_a_direction_along_an_axis_is_kept_exactly():
+    for normal in ([0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [0.0, 5.0, 0.0]):
+        s = sc.loads(PROBE.replace("NORMAL", str(normal)))
+        assert s["mechanism"]["plane_normal"] == [0.0, normal[1] / abs(normal[1] or 1.0),
+                                                   normal[2] / abs(normal[2] or 1.0)]
+
+
+def test_the_core_accepts_a_direction_the_format_normalised():
+    pytest.importorskip("mujoco")
+    from virtmech.builder import make_mechanism
+
+    s = sc.loads(PROBE.replace("NORMAL", "[0.342, 0.940, 0.0]"))
+    probe = make_mechanism(s["mechanism"])  # the core requires |n| within 1e-6 of 1
+    assert probe is not None
+
+
+@pytest.mark.parametrize(
+    ("bad", "index"), [("[nan, 1.0, 0.0]", 0), ("[0.0, inf, 0.0]", 1), ("[0.0, 1.0, -inf]", 2)]
+)
+def test_a_direction_that_is_not_finite_names_the_key(bad, index):
+    with pytest.raises(sc.ScenarioError) as e:
+        sc.loads(PROBE.replace("NORMAL", bad), "bad.toml")
+    assert f"bad.toml: mechanism.plane_normal[{index}]: value" in str(e.value)
+    assert "expected a number that is finite" in str(e.value)
+
+
+def test_an_intents_axis_of_any_length_is_read_as_its_unit_vector():
+    s = sc.loads(GOOD.replace('angle_deg = 10.0', 'angle_deg = 10.0\naxis = [0.0, 0.0, 2.0]'))
+    assert s["intent"][0]["axis"] == [0.0, 0.0, 1.0]
+    with pytest.raises(sc.ScenarioError) as e:
+        sc.loads(GOOD.replace('angle_deg = 10.0', 'angle_deg = 10.0\naxis = [0, 0, 0]'), "b.toml")
+    assert "b.toml: intent[0].axis: value [0, 0, 0] is out of range; expected a non-zero" in str(
+        e.value
+    )

@@ -14,8 +14,9 @@ import virtmech as vm
 
 mujoco = pytest.importorskip("mujoco")
 
+from reference.hand import CycleIntent  # noqa: E402
 from virtmech.scenarios import load  # noqa: E402
-from virtmech.sim import inner  # noqa: E402
+from virtmech.sim import inner, run  # noqa: E402
 from virtmech.sim.human import (  # noqa: E402
     PLAN_COLUMNS,
     PLAN_INDEX,
@@ -23,7 +24,7 @@ from virtmech.sim.human import (  # noqa: E402
     Intent,
     plan_slice,
 )
-from virtmech.sim.loop import log_columns, run  # noqa: E402
+from virtmech.sim.log import log_columns  # noqa: E402
 
 # every sensor effect on, so the compiled sensor model is compared as well
 SENSORS = {
@@ -120,10 +121,10 @@ def test_the_derived_columns_are_filled_on_a_second_thread_for_every_row(monkeyp
     import threading
     import time
 
-    from virtmech.sim import loop
+    from virtmech.sim.log import DerivedColumns
 
     threads, sunk = set(), []
-    real = loop._PostColumns.__call__
+    real = DerivedColumns.__call__
 
     def slow_on_the_worker(self, rows):
         name = threading.current_thread().name
@@ -132,7 +133,7 @@ def test_the_derived_columns_are_filled_on_a_second_thread_for_every_row(monkeyp
             time.sleep(0.05)
         real(self, rows)
 
-    monkeypatch.setattr(loop._PostColumns, "__call__", slow_on_the_worker)
+    monkeypatch.setattr(DerivedColumns, "__call__", slow_on_the_worker)
     s = load("omni-contact").with_overrides(duration_s=2.5)
     r = run(s, chunk_s=1.0, sink=lambda rows, cols: sunk.append(rows.copy()))
     assert r.n_cycles == 2501
@@ -179,7 +180,7 @@ def test_an_error_deriving_the_columns_is_raised_by_the_run(monkeypatch):
     # the first stretch derived on the worker fails: the run raises it
     import threading
 
-    from virtmech.sim import loop
+    from virtmech.sim.log import DerivedColumns
 
     threads = []
 
@@ -188,7 +189,7 @@ def test_an_error_deriving_the_columns_is_raised_by_the_run(monkeypatch):
         if threads[-1] != "MainThread":
             raise RuntimeError("derived columns failed")
 
-    monkeypatch.setattr(loop._PostColumns, "__call__", failing)
+    monkeypatch.setattr(DerivedColumns, "__call__", failing)
     with pytest.raises(RuntimeError, match="derived columns failed"):
         run(load("omni-contact").with_overrides(duration_s=1.5), chunk_s=1.0)
     assert any(t != "MainThread" for t in threads)
@@ -200,7 +201,7 @@ def test_the_hand_plan_is_the_per_cycle_intent():
     hand = HandImpedance()
     T = 1e-3
     a = Intent(SEGMENTS, hand, arm, T0, T)
-    b = Intent(SEGMENTS, hand, arm, T0, T)
+    b = CycleIntent(SEGMENTS, hand, arm, T0, T)
     N = 1100
     # a handle pose that moves, so segment starts that take the handle's pose are checked
     handle = [arm.forward([0.2 + 0.3 * k / N]) for k in range(N)]
@@ -250,9 +251,8 @@ def test_the_loop_restores_mujocos_timer_callback():
 
 
 def _loop_settings(Cinv, c0, actuated) -> dict:
-    from virtmech.sim.sensors import Sensors, SensorSettings
+    from virtmech.sim.sensors import SensorSettings
 
-    n = len(c0)
     return dict(
         coupling_inv=Cinv,
         coupling_offset=c0,
@@ -262,7 +262,7 @@ def _loop_settings(Cinv, c0, actuated) -> dict:
         comp_bodies=[],
         comp_masses=[],
         gravity=np.zeros(3),
-        sensors=Sensors(SensorSettings(counts_per_rev=0), n, 1e-3, None),
+        sensors=SensorSettings(counts_per_rev=0),
     )
 
 

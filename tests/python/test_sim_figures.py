@@ -177,7 +177,7 @@ def test_fig12_resisting_user_feels_a_bending_probe(runs, dev):
 @pytest.mark.parametrize("name", sc.names())
 def test_passive_joints_get_no_torque_and_motors_stay_in_their_limits(runs, name):
     r = runs[name]
-    from virtmech.sim.loop import make_device
+    from virtmech.builder import make_device
 
     device = make_device(r.scenario["device"])
     act = np.asarray(device.actuated)

@@ -139,7 +139,7 @@ def test_omni_apparent_tip_mass_is_near_the_reference_45_g():
 
 def test_gravity_is_along_minus_y_for_the_omni_and_the_hand_weight_is_carried():
     from virtmech.scenarios import load
-    from virtmech.sim.loop import run
+    from virtmech.sim import run
 
     s = load("omni-fig9").with_overrides(duration_s=0.05)
     r = run(s)

@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 import virtmech as vm
+from reference.hand import CycleIntent, hand_wrench
+from reference.sensors import Sensors
 from virtmech.sim.grip import finger_forces
-from virtmech.sim.human import HandImpedance, Intent, hand_wrench, min_jerk
-from virtmech.sim.sensors import Sensors, SensorSettings
+from virtmech.sim.human import HandImpedance, min_jerk
+from virtmech.sim.sensors import SensorSettings
 
 
 def test_encoder_quantisation_is_15000_counts_per_revolution_by_default():
@@ -98,7 +100,7 @@ def test_twist_rotates_the_hand_anchor_about_the_plane_normal():
     seg = [
         {"action": "twist", "start_s": 0.1, "duration_s": 0.5, "angle_deg": 30.0, "axis": "normal"}
     ]
-    intent = Intent(seg, HandImpedance(), arm, T0, 1e-3)
+    intent = CycleIntent(seg, HandImpedance(), arm, T0, 1e-3)
     for k in range(800):
         target = intent.update(k * 1e-3, T0)
     R = target.R @ T0[:3, :3].T
@@ -122,7 +124,7 @@ def test_follow_moves_the_anchor_along_the_mechanism_and_holds_the_orientation()
             "orientation": "hold",
         }
     ]
-    intent = Intent(seg, HandImpedance(), arm, T0, 1e-3)
+    intent = CycleIntent(seg, HandImpedance(), arm, T0, 1e-3)
     for k in range(1101):
         target = intent.update(k * 1e-3, T0)
     np.testing.assert_allclose(target.p, arm.forward([0.7])[:3, 3], atol=1e-12)
@@ -148,7 +150,7 @@ def test_follow_offsets_and_a_push_in_handle_axes():
             "ramp_s": 0.1,
         },
     ]
-    intent = Intent(seg, HandImpedance(), arm, T0, 1e-3)
+    intent = CycleIntent(seg, HandImpedance(), arm, T0, 1e-3)
     targets = [intent.update(k * 1e-3, T0) for k in range(2001)]
     # halfway along the path's length (min-jerk: s(0.5) = 0.5) it is 15 mm along: at the
     # second waypoint's leg, 5 mm up

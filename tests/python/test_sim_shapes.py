@@ -160,7 +160,7 @@ def test_snapping_between_two_guides_follows_the_hysteresis_and_the_rate():
 def test_with_no_member_rendered_the_distance_is_the_one_the_set_would_snap_to():
     # a line 20 mm below the tip and a unilateral plane 70 mm below it: the set compares the
     # plane by its tip height (70 mm), not by its depth (0 everywhere above it)
-    from virtmech.sim.loop import _PostColumns, log_columns
+    from virtmech.sim.log import DerivedColumns, log_columns
 
     L = 0.08
     members = [
@@ -175,7 +175,7 @@ def test_with_no_member_rendered_the_distance_is_the_one_the_set_would_snap_to()
     log[:, c["pz"]] = 0.02 + L  # the handle above the tip, the stylus straight down
     log[:, c["sz"]] = -1.0
     log[:, c["member"]] = [-1, 0]
-    post = _PostColumns(columns, members, None, [-0.015, -0.05])
+    post = DerivedColumns(columns, members, [-0.015, -0.05])
     d = post._distances(log, log[:, c["px"]:c["px"] + 3], log[:, c["sx"]:c["sx"] + 3])
     assert d[0, 0] == pytest.approx(0.02)  # none rendered: the line's
     assert d[1, 1] == pytest.approx(0.07)  # the plane rendered: its signed height

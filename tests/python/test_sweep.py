@@ -252,8 +252,11 @@ def test_the_metrics_sink_gives_the_metrics_of_the_log():
             assert _value(got[k]) == _value(ref[k]), (name, k)
 
 
-def test_sweep_from_python_with_a_progress_bar(capsys):
+def test_sweep_from_python_with_a_progress_bar(capsys, monkeypatch):
+    import virtmech.progress as P
     from virtmech.sweep import sweep
+
+    monkeypatch.setattr(P, "LINE_INTERVAL_S", 0.0)  # stderr is no terminal: a line per run
 
     grid = {"sensors.noise_rad": [0.0, 1e-3]}  # a table the file does not write
     table = sweep(SCENARIO, grid, workers=1, duration=0.05, overrides={"seed": 3})
@@ -261,7 +264,8 @@ def test_sweep_from_python_with_a_progress_bar(capsys):
     assert table.column("ok").to_pylist() == [True, True]
     dist = table.column("dist_max_m").to_pylist()
     assert dist[0] != dist[1]  # the noise reached the runs
-    assert "planar3r-fig9 sweep" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "planar3r-fig9 sweep  100%  2/2 runs" in err and "\r" not in err
 
 
 #: a long run first: with two workers the short ones end before it

@@ -29,7 +29,7 @@ pytest.importorskip("matplotlib")
 
 import virtmech.scenarios as sc  # noqa: E402
 from virtmech.cli import main  # noqa: E402
-from virtmech.sim.loop import log_columns  # noqa: E402
+from virtmech.sim.log import log_columns  # noqa: E402
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--use-gl=angle", "--use-angle=swiftshader"]
@@ -101,6 +101,45 @@ def device_pixels(png: bytes) -> tuple[float, int]:
     return float(img.mean(axis=2).std()), int(orange.sum())
 
 
+#: what the page's uPlot charts drew: each axis's labels, its width and the room above
+#: the plot, the measured width of each label [CSS px]
+PLOTS_JS = """() => Object.values((window.__viserTestpoints || {}).uplots || {}).map(tp => {
+  const u = tp.chart, ctx = u.ctx;
+  return {
+    title: u.root.querySelector('.u-title')?.textContent,
+    points: u.data[0].length,
+    top: u.bbox.top / devicePixelRatio,
+    axes: u.axes.map(a => {
+      ctx.font = a.font[0];
+      return {values: a._values || [], size: a._size, gap: a.gap, ticks: a.ticks.size,
+              font_px: a.font[1], widths: (a._values || []).map(v => ctx.measureText(v).width)};
+    }),
+  };
+})"""
+
+
+def check_plots(page) -> None:
+    """The plots' y axes at rest: labels that differ and rise up the axis, none wider than
+    the axis nor cut at the top, and the page says why |f| flickers at rest."""
+    t_end = time.monotonic() + 20
+    while True:
+        plots = page.evaluate(PLOTS_JS)
+        if (len(plots) == 3 and all(p["points"] > 10 for p in plots)) or time.monotonic() > t_end:
+            break
+        time.sleep(0.3)
+    assert sorted(p["title"] for p in plots) == [
+        "distance from the mechanism", "energy", "force at the handle"]
+    for p in plots:
+        y = p["axes"][1]
+        shown = [float(v.replace("\u2212", "-").replace(",", "")) for v in y["values"]]
+        assert len(shown) >= 2 and all(a < b for a, b in zip(shown, shown[1:])), (p, shown)
+        for w in y["widths"]:  # the label, its gap and the tick fit in the axis
+            assert w + y["gap"] + y["ticks"] <= y["size"], p
+        assert p["top"] >= y["font_px"] / 2, p  # the top label is not cut in half
+    text = page.inner_text("body")
+    assert "flickers" in text and "counts_per_rev" in text
+
+
 def test_the_page_draws_the_device_and_the_mouse_moves_the_hand():
     from playwright.sync_api import sync_playwright  # the test extra installs it
 
@@ -136,6 +175,7 @@ def test_the_page_draws_the_device_and_the_mouse_moves_the_hand():
                 time.sleep(0.3)
             assert spread > 10, f"the canvas is blank (grey-level deviation {spread:.1f})"
             assert orange > 400, f"the device is not drawn ({orange} orange pixels)"
+            check_plots(page)
 
             # the mouse is the hand: drag the gizmo's x arrow 20 mm along +x
             s0 = get_state(port)

@@ -3,7 +3,7 @@ loop (sim/src/servo_loop.cpp, virtmech.sim.inner.ServoLoop) is tested against, i
 (tests/python/test_sim_engine.py). It is not shipped and no product path runs it.
 
 It takes what virtmech.sim.inner.ServoLoop takes and writes the same log columns, by name
-(plan columns: virtmech.sim.human.PLAN_COLUMNS; log columns: virtmech.sim.loop.log_columns).
+(plan columns: virtmech.sim.human.PLAN_COLUMNS; log columns: virtmech.sim.log.log_columns).
 """
 
 from __future__ import annotations
@@ -13,7 +13,10 @@ import time
 import mujoco
 import numpy as np
 
-from virtmech.sim.human import PLAN_INDEX, HandTarget, hand_wrench, plan_slice
+from virtmech.sim.human import PLAN_INDEX, plan_slice
+
+from .hand import HandTarget, hand_wrench
+from .sensors import Sensors
 
 
 class PyServoLoop:
@@ -25,7 +28,8 @@ class PyServoLoop:
         self.act = np.asarray(kw["actuated"], dtype=int)
         self.nsub, self.T = int(kw["substeps"]), float(kw["period_s"])
         self.comp = list(zip(kw["comp_bodies"], kw["comp_masses"]))
-        self.g, self.sensors = np.asarray(kw["gravity"], dtype=float), kw["sensors"]
+        self.g = np.asarray(kw["gravity"], dtype=float)
+        self.sensors = Sensors(kw["sensors"], self.dev.dof, self.T, None)
         self.jacp = np.zeros((3, model.nv))
         self.col = {name: i for i, name in enumerate(log_columns)}
         # the hand's body: its mass and inertia zeroed while the plan says it has let go

@@ -4,7 +4,7 @@ docs/scenarios.md). The paper's Figs. 9-12 ship as `omni-fig9` ... `planar3r-fig
 
     >>> import virtmech.scenarios as sc
     >>> sc.names()[:2]
-    ['omni-fig10', 'omni-fig11']
+    ['omni-fig9', 'omni-fig10']
     >>> s = sc.load("omni-fig10")
 """
 
@@ -36,6 +36,7 @@ __all__ = [
     "loads",
     "names",
     "override",
+    "paper_order",
     "parse_assignment",
     "parse_grid",
     "parse_value",
@@ -235,9 +236,23 @@ def json_schema() -> dict[str, Any]:
     }
 
 
+def paper_order(names) -> list[str]:
+    """Scenario names in the paper's figure order (fig9, fig10, fig11, fig12 by number, not
+    as strings), device by device; names without a figure number after, alphabetically."""
+    import re
+
+    def key(name: str):
+        m = re.search(r"fig(\d+)", name)
+        return (0, name[: m.start()], int(m.group(1)), name) if m else (1, name, 0, name)
+
+    return sorted(names, key=key)
+
+
 def names() -> list[str]:
-    """Names of the shipped scenarios, sorted."""
-    return sorted(p.stem for p in DATA.glob("*.toml"))
+    """Names of the shipped scenarios in the paper's figure order (`paper_order`: omni-fig9
+    before omni-fig10), then the others alphabetically: as `virtmech scenarios` lists them and
+    `virtmech demo` runs them."""
+    return paper_order(p.stem for p in DATA.glob("*.toml"))
 
 
 def path_of(name: str) -> Path:

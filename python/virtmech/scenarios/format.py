@@ -25,7 +25,7 @@ def opt_vec(n, doc="", nonzero=False):
 
 
 def direction(default=None, required=False, doc="3 numbers, not all zero"):
-    """A direction: 3 numbers, not all zero (normalised where used)."""
+    """A direction: 3 finite numbers, not all zero, read as the unit vector x / |x|."""
     if default is None and not required:
         return opt_vec(3, doc, nonzero=True)
     return vec(3, default, required, doc, nonzero=True)

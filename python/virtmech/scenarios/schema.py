@@ -49,7 +49,7 @@ class Field:
     variant_key: str | None = None
     doc: str = ""
     element: Field | None = None  # vectors of vectors
-    nonzero: bool = False  # vectors: a direction, not all zero
+    nonzero: bool = False  # vectors: a direction, not all zero, returned normalised
     pattern: str | None = None  # strings: a regular expression the whole string matches
     extra: dict = field(default_factory=dict)
 
@@ -124,11 +124,8 @@ class Field:
             if self.element is not None:
                 return [self.element.check(f"{path}[{i}]", x) for i, x in enumerate(v)]
             out = [self._number(f"{path}[{i}]", x) for i, x in enumerate(v)]
-            if self.nonzero and math.sqrt(sum(x * x for x in out)) < 1e-9:
-                raise ScenarioError(
-                    f"{path}: value {_show(v)} is out of range; expected a non-zero vector "
-                    "(a direction)"
-                )
+            if self.nonzero:
+                return _direction(path, v, out)
             return out
         if k == "axis":  # a choice string or a 3-vector
             if isinstance(v, str):
@@ -157,6 +154,21 @@ class Field:
                 raise ScenarioError(*errors)
             return out
         raise AssertionError(k)
+
+
+def _direction(path: str, v: Any, x: list[float]) -> list[float]:
+    """A direction's numbers (each finite) as a unit vector x / |x|; a ScenarioError naming
+    the key if they are all zero. Scaled by the largest first, so that no square overflows
+    or underflows: any finite non-zero vector has a direction (and one along an axis stays
+    exactly itself)."""
+    top = max(abs(c) for c in x)
+    if top == 0.0:
+        raise ScenarioError(
+            f"{path}: value {_show(v)} is out of range; expected a non-zero vector (a direction)"
+        )
+    u = [c / top for c in x]
+    norm = math.sqrt(sum(c * c for c in u))
+    return [c / norm for c in u]
 
 
 def check_table(path: str, v: Any, spec: Field) -> dict:

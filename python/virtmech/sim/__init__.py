@@ -27,15 +27,15 @@ def run(
     progress: bool = False,
     **streaming: Any,
 ):
-    """virtmech.sim.loop.run: `streaming` takes sink, keep_log, chunk_s and spill_dir."""
-    from .loop import run as _run
+    """virtmech.sim.run_loop.run: `streaming` takes sink, keep_log, chunk_s and spill_dir."""
+    from .run_loop import run as _run
 
     return _run(scenario, seed=seed, progress=progress, **streaming)
 
 
 def __getattr__(name: str) -> Any:
     if name == "SimResult":
-        from .loop import SimResult
+        from .log import SimResult
 
         return SimResult
     if name == "build_mjcf":

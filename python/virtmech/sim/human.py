@@ -209,7 +209,6 @@ PLAN_COLUMNS = (
     + ["fx", "fy", "fz", "mx", "my", "mz", "force_in_handle", "hand_attached", "segment"]
 )
 #: actions that Intent.plan plans and the per-cycle Intent.update does not
-PLAN_ONLY = ("wrench", "release", "sine", "chirp")
 
 #: column of each name in PLAN_COLUMNS
 PLAN_INDEX = {name: i for i, name in enumerate(PLAN_COLUMNS)}
@@ -221,28 +220,9 @@ def plan_slice(first: str, width: int = 1) -> slice:
     return slice(i, i + width)
 
 
-@dataclass
-class HandTarget:
-    """Where the hand wants the handle this cycle, and how stiffly."""
-
-    p: np.ndarray
-    R: np.ndarray
-    v: np.ndarray
-    w: np.ndarray
-    k_t: float
-    b_t: float
-    k_r: float
-    b_r: float
-    force: np.ndarray
-    segment: int
-    moment: np.ndarray | None = None  #: pushed moment [N·m], world axes (None: zero)
-    attached: bool = True  #: False: the hand has let go (no wrench at all)
-
-
 class Intent:
     """The intent timeline: `plan(k0, k1, T_handle)` over consecutive stretches of cycles
-    (see `start_cycles`), or the older `update(t, T_handle)` once per control cycle, in order
-    (the original actions only). Segments are the [[intent]] tables as dicts; a mistake that
+    (see `start_cycles`). Segments are the [[intent]] tables as dicts; a mistake that
     needs the mechanism raises a ValueError naming `intent[i].key` (i: the segment's place
     in `segments`)."""
 
@@ -355,10 +335,6 @@ class Intent:
             self._path0 = self.mechanism.forward(np.array([float(seg["theta"][0])]))
         self.active = i
 
-    def _follow(self, seg: dict, s: float) -> tuple[np.ndarray, np.ndarray]:
-        p, R = self._follow_batch(seg, np.array([s]))
-        return p[0], R[0]
-
     def start_cycles(self, n_cycles: int) -> list[int]:
         """The control cycles (< n_cycles) at which a segment starts: a plan must not run
         across one (it needs the handle's pose there)."""
@@ -376,62 +352,89 @@ class Intent:
 
     def plan(self, k0: int, k1: int, T_handle: np.ndarray) -> np.ndarray:
         """The hand's targets for control cycles k0 .. k1 - 1 (t = k T), one row each with the
-        columns PLAN_COLUMNS: what `update` returns cycle by cycle, for a stretch in which no
-        segment starts after k0 (see `start_cycles`). T_handle is the handle's pose at cycle
-        k0 (a segment starting there starts from it). A push given in handle axes is
-        returned in handle axes with force_in_handle = 1: it turns with the handle."""
+        columns PLAN_COLUMNS, for a stretch in which no segment starts after k0 (see
+        `start_cycles`). T_handle is the handle's pose at cycle k0 (a segment starting there
+        starts from it). A push given in handle axes is returned in handle axes with
+        force_in_handle = 1: it turns with the handle."""
         t = np.arange(k0, k1) * self.T
-        m = len(t)
+        self._advance(t, k0, k1, T_handle)
+        p, R, v_exact, w_exact = self._anchor(t)
+        force, moment, in_handle = self._push(t)
+        v, w = self._rates(p, R, v_exact, w_exact)
+        self.p_a, self.R_a = p[-1].copy(), R[-1].copy()
+        self._prev_p, self._prev_R = p[-1].copy(), R[-1].copy()
+        return self._rows(p, R, v, w, force, moment, in_handle)
+
+    def _advance(self, t: np.ndarray, k0: int, k1: int, T_handle: np.ndarray) -> None:
+        """The segments that start by the stretch's first cycle started (from T_handle); a
+        ValueError where one would start inside the stretch."""
         while (
             self.active + 1 < len(self.segments)
             and t[0] >= self.segments[self.active + 1]["start_s"] - 1e-12
         ):
             self._start(self.active + 1, T_handle)
         nxt = self.active + 1
-        if nxt < len(self.segments) and m > 1:
+        if nxt < len(self.segments) and len(t) > 1:
             if t[-1] >= self.segments[nxt]["start_s"] - 1e-12:
                 raise ValueError(
                     f"Intent.plan: segment {nxt} starts inside cycles {k0}..{k1 - 1}; split the "
                     "plan at start_cycles()"
                 )
-        P = np.empty((m, len(PLAN_COLUMNS)))
+
+    def _anchor(self, t: np.ndarray):
+        """The anchor's poses p (m, 3), R (m, 3, 3) at times t, and its rates in closed form
+        where the action has them (else None)."""
+        m = len(t)
         p = np.broadcast_to(self.p_a, (m, 3)).copy()
         R = np.broadcast_to(self.R_a, (m, 3, 3)).copy()
+        v_exact = w_exact = None
+        if self.active < 0:
+            return p, R, v_exact, w_exact
+        seg = self.segments[self.active]
+        dur = self.durations[self.active]
+        tau = t - seg["start_s"]
+        s = min_jerk_array(tau / dur) if dur > 0 else np.ones(m)
+        action = seg["action"]
+        p[:], R[:] = self._start_p, self._start_R
+        if action == "follow":
+            if seg.get("profile", "min_jerk") == "constant":
+                p, R, v_exact = self._follow_constant(seg, tau)
+            else:
+                p, R = self._follow_batch(seg, s)
+        elif action in ("twist", "resist"):
+            R = rotations(self._axis_vec, np.radians(seg["angle_deg"]) * s) @ self._start_R
+        elif action in ("sine", "chirp"):
+            x, dx = self._oscillation(seg, tau, dur)
+            n = self._axis_vec
+            if "amplitude_m" in seg:
+                p = self._start_p[None, :] + x[:, None] * n[None, :]
+                v_exact = dx[:, None] * n[None, :]
+            else:
+                R = rotations(n, x) @ self._start_R
+                w_exact = dx[:, None] * n[None, :]
+        return p, R, v_exact, w_exact
+
+    def _push(self, t: np.ndarray):
+        """The pushed force and moment (m, 3) each at times t, ramped in and out, and whether
+        they are in handle axes (1.0) or world axes (0.0)."""
+        m = len(t)
         force, moment = np.zeros((m, 3)), np.zeros((m, 3))
-        in_handle = 0.0
-        v_exact = w_exact = None  # anchor rates in closed form, where the action has them
-        if self.active >= 0:
-            seg = self.segments[self.active]
-            dur = self.durations[self.active]
-            tau = t - seg["start_s"]
-            s = min_jerk_array(tau / dur) if dur > 0 else np.ones(m)
-            action = seg["action"]
-            p[:], R[:] = self._start_p, self._start_R
-            if action == "follow":
-                if seg.get("profile", "min_jerk") == "constant":
-                    p, R, v_exact = self._follow_constant(seg, tau)
-                else:
-                    p, R = self._follow_batch(seg, s)
-            elif action in ("twist", "resist"):
-                R = rotations(self._axis_vec, np.radians(seg["angle_deg"]) * s) @ self._start_R
-            elif action in ("sine", "chirp"):
-                x, dx = self._oscillation(seg, tau, dur)
-                n = self._axis_vec
-                if "amplitude_m" in seg:
-                    p = self._start_p[None, :] + x[:, None] * n[None, :]
-                    v_exact = dx[:, None] * n[None, :]
-                else:
-                    R = rotations(n, x) @ self._start_R
-                    w_exact = dx[:, None] * n[None, :]
-            if "force" in seg or "moment" in seg:
-                g, _ = ramp_envelope(tau, dur, seg.get("ramp_s", 0.1))
-                if "force" in seg:
-                    force = g[:, None] * np.asarray(seg["force"], dtype=float)[None, :]
-                if "moment" in seg:
-                    moment = g[:, None] * np.asarray(seg["moment"], dtype=float)[None, :]
-                in_handle = 1.0 if seg.get("force_frame", "world") == "handle" else 0.0
-        # anchor rates: differences with the previous cycle's anchor (0 on the very first),
-        # or the closed form
+        if self.active < 0:
+            return force, moment, 0.0
+        seg = self.segments[self.active]
+        if "force" not in seg and "moment" not in seg:
+            return force, moment, 0.0
+        dur = self.durations[self.active]
+        g, _ = ramp_envelope(t - seg["start_s"], dur, seg.get("ramp_s", 0.1))
+        if "force" in seg:
+            force = g[:, None] * np.asarray(seg["force"], dtype=float)[None, :]
+        if "moment" in seg:
+            moment = g[:, None] * np.asarray(seg["moment"], dtype=float)[None, :]
+        return force, moment, 1.0 if seg.get("force_frame", "world") == "handle" else 0.0
+
+    def _rates(self, p: np.ndarray, R: np.ndarray, v_exact, w_exact):
+        """The anchor's rates: differences with the previous cycle's anchor (0 on the very
+        first), or the closed form."""
         if self._prev_p is None:
             pp = np.vstack([p[:1], p[:-1]])
             Rp = np.concatenate([R[:1], R[:-1]])
@@ -440,8 +443,13 @@ class Intent:
             Rp = np.concatenate([self._prev_R[None], R[:-1]])
         v = (p - pp) / self.T if v_exact is None else v_exact
         w = so3_log_batch(R @ np.transpose(Rp, (0, 2, 1))) / self.T if w_exact is None else w_exact
-        self.p_a, self.R_a = p[-1].copy(), R[-1].copy()
-        self._prev_p, self._prev_R = p[-1].copy(), R[-1].copy()
+        return v, w
+
+    def _rows(self, p, R, v, w, force, moment, in_handle: float) -> np.ndarray:
+        """The plan's rows (PLAN_COLUMNS) from the anchor, its rates, the push and the
+        state of the hand (passive groups, damping, attached)."""
+        m = len(p)
+        P = np.empty((m, len(PLAN_COLUMNS)))
         h, c = self.hand, PLAN_INDEX
         P[:, plan_slice("ax", 3)] = p
         P[:, plan_slice("R00", 9)] = R.reshape(m, 9)
@@ -539,78 +547,3 @@ class Intent:
                 u = np.where(seglen[k] > 0, (dist - before) / safe, 0.0)
                 p += pts[k] + u[:, None] * (pts[k + 1] - pts[k])
         return p, R
-
-    # ---- one cycle at a time --------------------------------------------------------
-
-    def update(self, t: float, T_handle: np.ndarray) -> HandTarget:
-        while (
-            self.active + 1 < len(self.segments)
-            and t >= self.segments[self.active + 1]["start_s"] - 1e-12
-        ):
-            self._start(self.active + 1, T_handle)
-        force = np.zeros(3)
-        if self.active >= 0:
-            seg = self.segments[self.active]
-            if (
-                seg["action"] in PLAN_ONLY
-                or "moment" in seg
-                or seg.get("profile", "min_jerk") != "min_jerk"
-            ):
-                raise ValueError(
-                    f"Intent.update: intent[{self._given[self.active]}] (action "
-                    f"{seg['action']!r}) is planned by Intent.plan only"
-                )
-            dur = seg.get("duration_s", 0.0)
-            s = min_jerk((t - seg["start_s"]) / dur) if dur > 0 else 1.0
-            action = seg["action"]
-            if action == "hold":
-                self.p_a, self.R_a = self._start_p, self._start_R
-            elif action == "follow":
-                self.p_a, self.R_a = self._follow(seg, s)
-            elif action in ("twist", "resist"):
-                self.p_a = self._start_p
-                ang = np.radians(seg["angle_deg"]) * s
-                self.R_a = rotation(self._axis_vec, ang) @ self._start_R
-            elif action == "push":
-                self.p_a, self.R_a = self._start_p, self._start_R
-            if "force" in seg:
-                ramp = seg.get("ramp_s", 0.1)
-                tin = t - seg["start_s"]
-                tout = seg["start_s"] + dur - t if dur > 0 else math.inf
-                g = min(min_jerk(tin / ramp), min_jerk(tout / ramp)) if ramp > 0 else 1.0
-                if tin >= 0 and tout >= 0:
-                    f = np.asarray(seg["force"], dtype=float)
-                    if seg.get("force_frame", "world") == "handle":
-                        f = T_handle[:3, :3] @ f
-                    force = g * f
-        if self._prev_p is None:
-            v, w = np.zeros(3), np.zeros(3)
-        else:
-            v = (self.p_a - self._prev_p) / self.T
-            w = vm.so3_log(self.R_a @ self._prev_R.T) / self.T
-        self._prev_p, self._prev_R = self.p_a.copy(), self.R_a.copy()
-        h = self.hand
-        return HandTarget(
-            p=self.p_a,
-            R=self.R_a,
-            v=np.zeros(3) if self.trans_passive else v,
-            w=np.zeros(3) if self.rot_passive else w,
-            k_t=0.0 if self.trans_passive else float(self.k_t),
-            b_t=h.damping,
-            k_r=0.0 if self.rot_passive else float(self.k_r),
-            b_r=h.rot_damping,
-            force=force,
-            segment=self.active,
-        )
-
-
-def hand_wrench(target: HandTarget, T: np.ndarray, twist: np.ndarray) -> np.ndarray:
-    """The wrench (6,) [N; N·m] the hand applies at the handle origin, world axes (zero
-    when the hand has let go)."""
-    if not target.attached:
-        return np.zeros(6)
-    F = target.k_t * (target.p - T[:3, 3]) + target.b_t * (target.v - twist[:3]) + target.force
-    M = target.k_r * vm.so3_log(target.R @ T[:3, :3].T) + target.b_r * (target.w - twist[3:])
-    if target.moment is not None:
-        M = M + target.moment
-    return np.concatenate([F, M])

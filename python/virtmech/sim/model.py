@@ -87,6 +87,16 @@ class DeviceModel:
         return asdict(self)
 
 
+def device_physics(scenario_device: dict) -> DeviceModel:
+    """The physical parameters of a scenario's [device] table: the device's defaults
+    (DeviceModel.for_device) with the keys the table sets."""
+    p = DeviceModel.for_device(scenario_device["type"])
+    for k in p.to_dict():
+        if k in scenario_device:
+            setattr(p, k, float(scenario_device[k]))
+    return p
+
+
 @dataclass
 class HandBody:
     """The hand's mass and rotational inertia, rigidly on the handle (see human.py). Both
@@ -193,42 +203,18 @@ class BuiltModel:
         return self.spec.to_xml()
 
 
-def build_mjcf(
-    device,
-    params: DeviceModel | None = None,
-    hand: HandBody | None = None,
-    gravity=(0.0, 0.0, -9.81),
-    timestep: float = 2.5e-4,
-) -> BuiltModel:
-    """The MuJoCo model of any serial-chain `device` (vm.Device, vm.PhantomOmni,
-    vm.Planar3R ...): one body per chain joint, motors with torque limits on the actuated
-    joints, friction and damping on every joint, link inertias, the hand's mass on the
-    handle, and a site at the handle frame. Built with MjSpec from the core's chain."""
+def _limits(element, lo: float, hi: float) -> None:
+    """A joint's or tendon's range where both ends are finite."""
     import mujoco
 
-    device = _serial(device)
-    name = device.name
-    params = params or DeviceModel.for_device(name)
-    hand = hand or HandBody()
-    coupling = coupling_of(device)
-    B = np.asarray(device.base, dtype=float)
-    H = np.asarray(device.handle, dtype=float)
-    joints = device.joints
-    n = device.dof
-    actuated = list(device.actuated)
-    lower, upper = np.asarray(device.lower), np.asarray(device.upper)
-    torque_limit = np.asarray(device.torque_limit)
+    if np.isfinite(lo) and np.isfinite(hi):
+        element.range = [lo, hi]
+        element.limited = mujoco.mjtLimited.mjLIMITED_TRUE
 
-    # link geometry: the offset to the next joint (or the handle) in each body frame
-    nxt = [joints[i + 1].origin[:3, 3] for i in range(n - 1)] + [H[:3, 3]]
-    last_arm = max((i for i in range(n) if actuated[i]), default=-1)  # then the wrist
 
-    # a joint is written on the chain joint directly when its device row is a unit vector
-    direct = []
-    for i in range(n):
-        row = coupling.Cinv[i]
-        nz = np.flatnonzero(np.abs(row) > 0)
-        direct.append(len(nz) == 1 and nz[0] == i and row[i] == 1.0 and coupling.c0[i] == 0.0)
+def _spec(name: str, gravity, timestep: float):
+    """An empty MjSpec with the options every device model shares."""
+    import mujoco
 
     spec = mujoco.MjSpec()
     spec.modelname = name
@@ -244,88 +230,155 @@ def build_mjcf(
     spec.default.geom.contype = 0
     spec.default.geom.conaffinity = 0
     spec.default.geom.rgba = [0.6, 0.6, 0.65, 1.0]
+    return spec
 
-    def limits(element, lo: float, hi: float) -> None:
-        if np.isfinite(lo) and np.isfinite(hi):
-            element.range = [lo, hi]
-            element.limited = mujoco.mjtLimited.mjLIMITED_TRUE
 
-    parent = spec.worldbody
-    bodies: list[str] = []
-    for i, j in enumerate(joints):
-        body = parent.add_body(name=f"link{i}")
-        _place(body, B @ j.origin if i == 0 else j.origin)
-        bodies.append(body.name)
-        passive = not actuated[i]
-        hinge = j.type == "revolute"
+class _ChainModel:
+    """The MJCF of a serial-chain device, built stage by stage (build_mjcf)."""
+
+    def __init__(self, device, params: DeviceModel, hand: HandBody):
+        self.device, self.params, self.hand = device, params, hand
+        self.coupling = coupling_of(device)
+        self.B = np.asarray(device.base, dtype=float)
+        self.H = np.asarray(device.handle, dtype=float)
+        self.joints = device.joints
+        self.n = device.dof
+        self.actuated = list(device.actuated)
+        self.lower, self.upper = np.asarray(device.lower), np.asarray(device.upper)
+        self.torque_limit = np.asarray(device.torque_limit)
+        n, joints = self.n, self.joints
+        # link geometry: the offset to the next joint (or the handle) in each body frame
+        self.nxt = [joints[i + 1].origin[:3, 3] for i in range(n - 1)] + [self.H[:3, 3]]
+        self.last_arm = max((i for i in range(n) if self.actuated[i]), default=-1)
+        # a joint is written on the chain joint directly when its device row is a unit vector
+        self.direct = []
+        for i in range(n):
+            row = self.coupling.Cinv[i]
+            nz = np.flatnonzero(np.abs(row) > 0)
+            self.direct.append(
+                len(nz) == 1 and nz[0] == i and row[i] == 1.0 and self.coupling.c0[i] == 0.0
+            )
+
+    def bodies(self, spec) -> list[str]:
+        """One body per chain joint, each with its joint and its mass and geometry."""
+        parent, names = spec.worldbody, []
+        for i, j in enumerate(self.joints):
+            body = parent.add_body(name=f"link{i}")
+            _place(body, self.B @ j.origin if i == 0 else j.origin)
+            names.append(body.name)
+            self.joint(body, i, j)
+            self.mass(body, i)
+            parent = body
+        return names
+
+    def joint(self, body, i: int, j) -> None:
+        import mujoco
+
+        p = self.params
+        passive = not self.actuated[i]
+        kind = mujoco.mjtJoint.mjJNT_HINGE if j.type == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE
         joint = body.add_joint(
             name=f"s{i}",
-            type=mujoco.mjtJoint.mjJNT_HINGE if hinge else mujoco.mjtJoint.mjJNT_SLIDE,
+            type=kind,
             axis=np.asarray(j.axis, dtype=float),
-            damping=params.passive_damping if passive else params.joint_damping,
+            damping=p.passive_damping if passive else p.joint_damping,
         )
-        if direct[i]:
-            joint.frictionloss = params.passive_friction if passive else params.joint_friction
-            joint.armature = 0.0 if passive else params.armature
-            limits(joint, lower[i], upper[i])
-        seg = nxt[i]
+        if self.direct[i]:
+            joint.frictionloss = p.passive_friction if passive else p.joint_friction
+            joint.armature = 0.0 if passive else p.armature
+            _limits(joint, self.lower[i], self.upper[i])
+
+    def mass(self, body, i: int) -> None:
+        """Body i's inertia and geometry: a turret, an arm link, a gimbal ring or the
+        stylus."""
+        import mujoco
+
+        p, seg = self.params, self.nxt[i]
         L = float(np.linalg.norm(seg))
-        mass = params.link_mass if i <= last_arm else params.gimbal_mass
-        if i == 0 and params.base_mass > 0.0:
+        mass = p.link_mass if i <= self.last_arm else p.gimbal_mass
+        if i == 0 and p.base_mass > 0.0:
             # a turret: its frame at the shoulder, its mass on the first joint's axis
-            _inertial(body, params.base_mass, [0, -0.02, 0], [2e-5, 4e-5, 2e-5])
+            _inertial(body, p.base_mass, [0, -0.02, 0], [2e-5, 4e-5, 2e-5])
             body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.02, 0.01, 0],
                           quat=_quat(vm.so3_exp([np.pi / 2, 0, 0])))
-        elif i <= last_arm and L > 1e-9:
+        elif i <= self.last_arm and L > 1e-9:
             _inertial(body, mass, seg / 2, _rod_inertia(mass, L))
             body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.006, 0, 0],
                           fromto=np.concatenate([np.zeros(3), seg]))
-        elif i < n - 1:
+        elif i < self.n - 1:
             _inertial(body, mass, np.zeros(3), [1e-6, 1e-6, 1e-6])
         else:
-            # the stylus body: pen mass along the stylus, the handle site, the hand body
-            z = H[:3, 2]
-            com = H[:3, 3] + params.stylus_com * z
-            _inertial(body, params.stylus_mass, com, _rod_inertia(params.stylus_mass, 0.12))
-            body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.005, 0, 0],
-                          fromto=np.concatenate([H[:3, 3] - 0.09 * z, H[:3, 3] + 0.03 * z]),
-                          rgba=[0.2, 0.2, 0.25, 1.0])
-            site = body.add_site(name="handle", size=[0.004, 0.004, 0.004])
-            _place(site, H)
-            # the hand: rigid on the handle, weight carried by the user's arm (gravcomp)
-            if hand.present:
-                hb = body.add_body(name="hand", gravcomp=1.0)
-                _place(hb, H)
-                _inertial(hb, hand.mass_kg, np.zeros(3), np.full(3, hand.inertia))
-        parent = body
+            self.stylus(body)
 
-    # device joints that are not chain joints: fixed tendons; motors on the actuated ones
-    for i in range(n):
-        trn, target = mujoco.mjtTrn.mjTRN_JOINT, f"s{i}"
-        if not direct[i]:
-            passive = not actuated[i]
-            tendon = spec.add_tendon(
-                name=f"q{i}",
-                frictionloss=params.passive_friction if passive else params.joint_friction,
-                armature=0.0 if passive else params.armature,
-            )
-            off = float(coupling.Cinv[i] @ coupling.c0)
-            limits(tendon, lower[i] + off, upper[i] + off)
-            for k in range(n):
-                if coupling.Cinv[i, k] != 0.0:
-                    tendon.wrap_joint(f"s{k}", float(coupling.Cinv[i, k]))
-            trn, target = mujoco.mjtTrn.mjTRN_TENDON, f"q{i}"
-        if actuated[i]:
-            lim = float(torque_limit[i])
-            spec.add_actuator(
-                name=f"m{i}", trntype=trn, target=target, gear=[1, 0, 0, 0, 0, 0],
-                ctrlrange=[-lim, lim], ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
-            )
+    def stylus(self, body) -> None:
+        """The last body: the pen's mass along the stylus, the handle site, the hand."""
+        import mujoco
+
+        p, H = self.params, self.H
+        z = H[:3, 2]
+        com = H[:3, 3] + p.stylus_com * z
+        _inertial(body, p.stylus_mass, com, _rod_inertia(p.stylus_mass, 0.12))
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.005, 0, 0],
+                      fromto=np.concatenate([H[:3, 3] - 0.09 * z, H[:3, 3] + 0.03 * z]),
+                      rgba=[0.2, 0.2, 0.25, 1.0])
+        site = body.add_site(name="handle", size=[0.004, 0.004, 0.004])
+        _place(site, H)
+        # the hand: rigid on the handle, weight carried by the user's arm (gravcomp)
+        if self.hand.present:
+            hb = body.add_body(name="hand", gravcomp=1.0)
+            _place(hb, H)
+            _inertial(hb, self.hand.mass_kg, np.zeros(3), np.full(3, self.hand.inertia))
+
+    def actuation(self, spec) -> None:
+        """Device joints that are not chain joints as fixed tendons; motors on the actuated
+        ones."""
+        import mujoco
+
+        p, cp = self.params, self.coupling
+        for i in range(self.n):
+            trn, target = mujoco.mjtTrn.mjTRN_JOINT, f"s{i}"
+            if not self.direct[i]:
+                passive = not self.actuated[i]
+                tendon = spec.add_tendon(
+                    name=f"q{i}",
+                    frictionloss=p.passive_friction if passive else p.joint_friction,
+                    armature=0.0 if passive else p.armature,
+                )
+                off = float(cp.Cinv[i] @ cp.c0)
+                _limits(tendon, self.lower[i] + off, self.upper[i] + off)
+                for k in range(self.n):
+                    if cp.Cinv[i, k] != 0.0:
+                        tendon.wrap_joint(f"s{k}", float(cp.Cinv[i, k]))
+                trn, target = mujoco.mjtTrn.mjTRN_TENDON, f"q{i}"
+            if self.actuated[i]:
+                lim = float(self.torque_limit[i])
+                spec.add_actuator(
+                    name=f"m{i}", trntype=trn, target=target, gear=[1, 0, 0, 0, 0, 0],
+                    ctrlrange=[-lim, lim], ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
+                )
+
+
+def build_mjcf(
+    device,
+    params: DeviceModel | None = None,
+    hand: HandBody | None = None,
+    gravity=(0.0, 0.0, -9.81),
+    timestep: float = 2.5e-4,
+) -> BuiltModel:
+    """The MuJoCo model of any serial-chain `device` (vm.Device, vm.PhantomOmni,
+    vm.Planar3R ...): one body per chain joint, motors with torque limits on the actuated
+    joints, friction and damping on every joint, link inertias, the hand's mass on the
+    handle, and a site at the handle frame. Built with MjSpec from the core's chain."""
+    device = _serial(device)
+    chain = _ChainModel(device, params or DeviceModel.for_device(device.name), hand or HandBody())
+    spec = _spec(device.name, gravity, timestep)
+    bodies = chain.bodies(spec)
+    chain.actuation(spec)
     return BuiltModel(
         spec=spec,
-        coupling=coupling,
-        base=B,
-        handle=H,
+        coupling=chain.coupling,
+        base=chain.B,
+        handle=chain.H,
         gravity=np.asarray(gravity, dtype=float),
         timestep=timestep,
         device_bodies=bodies,

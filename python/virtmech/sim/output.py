@@ -11,8 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from ..jsonable import jsonable
+from ..scenarios import paper_order
+from .log import UNITS, SimResult
 from .logio import CsvLog, ParquetLog  # noqa: F401 (the sinks, here as before)
-from .loop import UNITS, SimResult
 
 WITHIN_M = 1e-3  # the "within 1 mm of the mechanism" threshold of the metrics
 
@@ -112,7 +113,8 @@ METRICS: dict[str, tuple[str, str]] = {
     "force_rms_n": ("N", "RMS of |f|"),
     "passive_torque_max": (
         "N·m",
-        "largest |torque| commanded or delivered on a passive joint (should be 0)",
+        "largest |torque| commanded or delivered on a joint without a motor (the Omni's "
+        "gimbal): 0, as eq. 8 requires (the energy tank, passivity, shows in energy_to_user_j)",
     ),
     "torque_fraction_max": ("1", "largest |commanded torque| / torque limit over the motors"),
     "motor_fraction_max": (
@@ -158,6 +160,7 @@ class _MetricSums:
         self.after_sq: list[float] = []  # per block: sum of dist**2 from row k0 on
         self.after_max = -math.inf
         self.d_max = -math.inf
+        self.d_last = math.nan  # dist at the last row
         self.dn_min = math.inf
         self.f_max = -math.inf
         self.f_sq: list[float] = []
@@ -193,6 +196,7 @@ class _MetricSums:
             self.after_sq.append(float(np.sum(after**2)))
             self.after_max = max(self.after_max, float(after.max()))
         self.d_max = max(self.d_max, float(d.max()))
+        self.d_last = float(d[-1])
         if self.unilateral:
             self.dn_min = min(self.dn_min, float(np.min(dn)))
         fmag = np.linalg.norm(F, axis=1)
@@ -215,7 +219,7 @@ def _total(parts: list[float]) -> float:
 
 
 def _accumulator(scenario, mech: dict) -> _MetricSums:
-    from .loop import make_device
+    from ..builder import make_device
 
     device = make_device(scenario.data["device"])
     act = np.asarray(device.actuated, dtype=bool)
@@ -277,7 +281,10 @@ def _finish(r: SimResult, acc: _MetricSums, mech: dict) -> dict:
         max_after = acc.after_max
     else:
         t1 = rms_after = max_after = math.nan
-        why = f"n/a: the {point} did not end the run within 1 mm of {target}"
+        why = (
+            f"n/a: the {point} did not end the run within 1 mm of {target} (it ended "
+            f"{acc.d_last * 1e3:.2f} mm from it)"
+        )
         for k in ("time_to_1mm_s", "dist_rms_after_m", "dist_max_after_m"):
             notes[k] = why
     if mech.get("unilateral"):
@@ -317,18 +324,6 @@ def _point_and_target(mech: dict) -> tuple[str, str]:
 
     g = geometry_of(mech)
     return (g.point, g.target) if g is not None else ("handle", "the mechanism")
-
-
-def paper_order(names) -> list[str]:
-    """Scenario names in the paper's figure order (fig9, fig10, fig11, fig12 by number, not
-    as strings), device by device; names without a figure number after, alphabetically."""
-    import re
-
-    def key(name: str):
-        m = re.search(r"fig(\d+)", name)
-        return (0, name[: m.start()], int(m.group(1)), name) if m else (1, name, 0, name)
-
-    return sorted(names, key=key)
 
 
 def write_summary(runs: dict[str, dict], path: str | Path) -> dict:

@@ -1,13 +1,14 @@
-"""The live simulation behind `virtmech view`: a scenario's device, controller and MuJoCo
-model, stepped a few control cycles at a time by the same C++ servo loop `virtmech run`
-uses (virtmech.sim.inner.ServoLoop), with the hand's anchor taken from the viewer (the
+"""The live simulation behind `virtmech view`: a scenario built as every run builds it
+(virtmech.builder: device, controller, MuJoCo model and start), stepped a few control
+cycles at a time by the same C++ servo loop `virtmech run` uses (virtmech.sim.inner.
+ServoLoop), with the hand's anchor taken from the viewer (the
 mouse) instead of the scenario's intent.
 
 Per stretch of cycles (`LiveSim.step(n)`): a hand plan of n identical rows (anchor = the
 target pose, anchor rates zero, the hand's gains from the settings), the sensor noise of
 the stretch, then `ServoLoop.run`; the columns the loop does not write (distances, PlanarArm
 angles, grip) are filled as `virtmech run` fills them. The rows are the log's rows
-(virtmech.sim.loop.log_columns); while recording they go to log.csv and, when the recording
+(virtmech.sim.log.log_columns); while recording they go to log.csv and, when the recording
 stops, run.json (and the figures) are written as `virtmech run` writes them.
 
 Settings that the loop holds (the controller's law, gains and passivity; the sensors' delay)
@@ -27,25 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-import virtmech as vm
-
-from ..sim import inner
-from ..sim.human import PLAN_COLUMNS, PLAN_INDEX, HandImpedance, plan_slice
-from ..sim.loop import (
-    PlanarGeometry,
-    _built,
-    _PostColumns,
-    controller_kwargs,
-    device_physics,
-    initial_joints,
-    log_columns,
-    make_device,
-    make_mechanism,
-    make_set,
-    versions,
-)
-from ..sim.model import HandBody, build_mjcf, compile_model, world_gravity
-from ..sim.sensors import Sensors, SensorSettings
+from ..sim.human import PLAN_COLUMNS, PLAN_INDEX, plan_slice
+from ..sim.run_loop import check_stable
+from ..sim.sensors import SensorSettings
 
 #: the controller laws the viewer offers (scenario key controller.law)
 LAWS = ("auto", "under_actuated", "null_space")
@@ -109,6 +94,18 @@ def rot_of_wxyz(q) -> np.ndarray:
     return R.reshape(3, 3)
 
 
+def _from_rig(path: str, doc: str = ""):
+    """A read-only attribute of LiveSim that is its rig's (a dotted path into it)."""
+
+    def get(self):
+        obj = self.rig
+        for part in path.split("."):
+            obj = getattr(obj, part)
+        return obj
+
+    return property(get, doc=doc or f"The rig's {path}.")
+
+
 class LiveSim:
     """One scenario, steppable: `step(n)` runs n control cycles (real time is the caller's
     business), `set_target(p, R)` moves the hand's anchor, `apply(settings)` changes the
@@ -119,84 +116,32 @@ class LiveSim:
     HISTORY_STRIDE = 10
 
     def __init__(self, scenario, seed: int | None = None):
-        import mujoco
+        from ..builder import build
 
-        from .. import scenarios as sc
-
-        if not isinstance(scenario, sc.Scenario):
-            scenario = sc.load(scenario)
-        self.scenario = scenario
-        S = scenario.data
-        self.seed = S["seed"] if seed is None else int(seed)
+        self.rig = build(scenario, seed)
+        rig = self.rig
+        self.scenario = rig.scenario
+        self.seed = rig.seed
         self.rng = np.random.default_rng(self.seed)
-        self.device = _built(scenario, "device", lambda: make_device(S["device"]))
-        self.mech = _built(scenario, "mechanism", lambda: make_mechanism(S["mechanism"]))
-        ctrl = _built(
-            scenario,
-            "controller",
-            lambda: vm.Controller(self.device, self.mech, **controller_kwargs(S["controller"])),
-        )
-        self.T = float(S["controller"]["period_s"])
-        self.n, self.m = self.device.dof, self.mech.dof
-        for mm in (S.get("set") or {}).get("members") or []:  # the widest member's theta
-            self.m = max(self.m, make_mechanism(mm).dof)
-        human = HandImpedance(**{k: S["human"][k] for k in HandImpedance().to_dict()})
-        self.human = human
-        self.phys = device_physics(S["device"])
-        gravity_on = S["physics"]["gravity"]
-        self.g_world = world_gravity(self.device)
-        self.nsub = int(round(S["physics"]["rate_hz"] * self.T))
-        self.built = build_mjcf(
-            self.device,
-            params=self.phys,
-            hand=HandBody(human.mass_kg, human.inertia),
-            gravity=self.g_world if gravity_on else np.zeros(3),
-            timestep=self.T / self.nsub,
-        )
-        self.model = compile_model(self.built)
-        self.data = mujoco.MjData(self.model)
-        cp = self.built.coupling
-        self.C, self.Cinv, self.c0 = cp.C, cp.Cinv, cp.c0
-        self.q0 = _built(scenario, "initial", lambda: initial_joints(S, self.device, self.mech))
-        self.data.qpos[:] = self.C @ self.q0 + self.c0
-        self.data.qvel[:] = 0.0
-        mujoco.mj_forward(self.model, self.data)
-        self.grav_comp = bool(gravity_on and S["physics"]["gravity_compensation"])
-        self.comp_bodies = [
-            mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, b)
-            for b in self.built.device_bodies
-        ]
-        self.hand_body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "hand")
-        self.columns = log_columns(self.n, self.m)
-        self.col = {c: i for i, c in enumerate(self.columns)}
-        planar = PlanarGeometry(self.mech) if S["mechanism"]["type"] == "PlanarArm" else None
-        # the distance columns of a set's run: the rendered member's (member 0: [mechanism])
-        members = [self.mech.to_dict()] + [
-            make_mechanism(mm).to_dict() for mm in (S.get("set") or {}).get("members") or []
-        ]
-        self.post = _PostColumns(self.columns, members, planar, S["human"]["grip_contacts"])
-
-        model = ctrl.model
-        self.base_kp = np.asarray(model["kp"], dtype=float)
-        self.base_kv = np.asarray(model["kv"], dtype=float)
-        sens = S["sensors"]
+        self.col = {c: i for i, c in enumerate(rig.columns)}
+        self.post = rig.derived_columns()
+        human, sens = rig.human, rig.sensors
+        self.base_kp = np.asarray(rig.controller.model["kp"], dtype=float)
+        self.base_kv = np.asarray(rig.controller.model["kv"], dtype=float)
         self.settings = Settings(
-            law=S["controller"]["law"],
+            law=self.scenario.data["controller"]["law"],
             kp=float(self.base_kp[0]),
             kv=float(self.base_kv[0]),
-            passivity=S["controller"]["passivity"] == "energy_tank",
+            passivity=self.scenario.data["controller"]["passivity"] == "energy_tank",
             hand_stiffness=human.stiffness,
             hand_damping=human.damping,
             hand_rot_stiffness=human.rot_stiffness,
             hand_rot_damping=human.rot_damping,
-            noise_rad=float(sens["noise_rad"]),
-            delay_cycles=int(sens["delay_cycles"]),
+            noise_rad=float(sens.noise_rad),
+            delay_cycles=int(sens.delay_cycles),
         )
-        self.sensor_settings = SensorSettings(**sens)
-        self.ctrl = ctrl
-        # a scenario with [[set.members]] renders a MechanismSet (member 0: the [mechanism])
-        self.renderer = make_set(S, self.device, ctrl)
-        self._make_loop()
+        self.sensor_settings = SensorSettings(**sens.to_dict())
+        self.servo = rig.servo_loop(self.sensor_settings)
 
         self.k = 0  # control cycles run since the start (or the last reset)
         T0 = self.device.forward(self.q0)
@@ -211,33 +156,26 @@ class LiveSim:
         self.snapshot = self._snap(None)
 
     # -------------------------------------------------------------------------------------
-    # building
+    # what the rig holds (virtmech.builder.Rig)
+
+    device = _from_rig("device")
+    mech = _from_rig("mechanism", "The [mechanism] (member 0 of a set).")
+    ctrl = _from_rig("controller", "The [mechanism]'s controller with the current settings.")
+    renderer = _from_rig("renderer", "What renders: the controller, or a set's MechanismSet.")
+    model = _from_rig("sim.model")
+    data = _from_rig("sim.data")
+    built = _from_rig("sim.built")
+    T = _from_rig("period_s", "The control period [s].")
+    nsub = _from_rig("sim.substeps", "Physics steps per control cycle.")
+    n = _from_rig("device.dof")
+    m = _from_rig("width", "The log's theta columns: the widest member's joints.")
+    q0 = _from_rig("q0", "The start pose.")
+    columns = _from_rig("columns", "The log's columns.")
 
     def _last(self):
         """The last cycle's CycleOutput (a set's: the member rendered)."""
         last = self.renderer.last
         return getattr(last, "cycle", last)
-
-    def _make_loop(self) -> None:
-        act_idx = np.flatnonzero(np.asarray(self.device.actuated, dtype=bool))
-        comp = self.comp_bodies if self.grav_comp else []
-        self.sensors = Sensors(self.sensor_settings, self.n, self.T, self.rng)
-        self.servo = inner.ServoLoop(
-            controller=self.renderer,
-            model=self.model,
-            data=self.data,
-            coupling_inv=self.Cinv,
-            coupling_offset=self.c0,
-            actuated=[int(i) for i in act_idx],
-            substeps=self.nsub,
-            period_s=self.T,
-            comp_bodies=[int(b) for b in comp],
-            comp_masses=[float(self.model.body_mass[b]) for b in comp],
-            gravity=self.g_world,
-            sensors=self.sensors,
-            hand_body=self.hand_body,
-            log_columns=self.columns,
-        )
 
     def current_scenario(self):
         """The scenario with the current settings' keys set (what a recording says it ran)."""
@@ -256,28 +194,21 @@ class LiveSim:
             or settings.delay_cycles != old.delay_cycles
         )
         if rebuild:
-            kw = controller_kwargs(self.scenario.data["controller"])
             keys = settings.scenario_keys(self.base_kp, self.base_kv)
-            kw.update(
+            rig = self.rig.with_controller(
                 law=settings.law,
                 kp=np.asarray(keys["controller.kp"]),
                 kv=np.asarray(keys["controller.kv"]),
                 passivity=keys["controller.passivity"],
             )
-            ctrl = vm.Controller(self.device, self.mech, **kw)
-            self.ctrl = ctrl
-            self.renderer = make_set(
-                {**self.scenario.data, "controller": {**self.scenario.data["controller"], **kw}},
-                self.device,
-                ctrl,
-            )
-            self.sensor_settings = SensorSettings(
+            sensors = SensorSettings(
                 **{**self.sensor_settings.to_dict(), "delay_cycles": int(settings.delay_cycles)}
             )
+            self.rig, self.sensor_settings = rig, sensors
         self.sensor_settings.noise_rad = float(settings.noise_rad)
         self.settings = settings
         if rebuild:
-            self._make_loop()
+            self.servo = self.rig.servo_loop(self.sensor_settings)
 
     def set_target(self, p, R=None) -> None:
         self.target_p = np.asarray(p, dtype=float).copy()
@@ -315,6 +246,7 @@ class LiveSim:
         dropout = np.zeros(n)
         rows = np.empty((n, len(self.columns)))
         self.servo.run(self.k, plan, noise, dropout, rows)
+        check_stable(self.scenario, self.rig.sim, self.k * self.T, (self.k + n) * self.T)
         self.post(rows)
         self.k += n
         c = self.col
@@ -482,7 +414,7 @@ class Recorder:
 
     def finish(self) -> Path:
         """run.json (with the metrics) and plane.png, time.png; returns the folder."""
-        from ..sim.loop import SimResult
+        from ..sim.log import SimResult
         from ..sim.output import metrics, write_run
         from ..viz import write_figures
 
@@ -512,38 +444,16 @@ class Recorder:
 
 
 def info_of(sim: LiveSim) -> dict:
-    """run.json's description of the live simulation (as virtmech.sim.run's `info`)."""
-    ctrl = sim.ctrl
-    S = sim.scenario.data
-    return {
-        "device": sim.device.to_dict(),
-        "device_physics": sim.phys.to_dict(),
-        "mechanism": sim.mech.to_dict(),
-        "controller_model": {
-            k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in ctrl.model.items()
-        },
-        "human": {
-            **sim.human.to_dict(),
-            "stiffness": sim.settings.hand_stiffness,
-            "damping": sim.settings.hand_damping,
-            "rot_stiffness": sim.settings.hand_rot_stiffness,
-            "rot_damping": sim.settings.hand_rot_damping,
-        },
-        "grip_contacts": list(S["human"]["grip_contacts"]),
-        "sensors": sim.sensor_settings.to_dict(),
-        "physics": {
-            "timestep_s": sim.T / sim.nsub,
-            "substeps": sim.nsub,
-            "gravity": sim.model.opt.gravity.tolist(),
-            "gravity_compensation": sim.grav_comp,
-            "integrator": "implicitfast",
-            "engine": "compiled",
-        },
-        "initial_q": sim.q0.tolist(),
-        "seed": sim.seed,
-        "versions": versions(),
-        "mjcf": sim.built.xml,
+    """run.json's description of the live simulation (the rig's, with the hand and the
+    sensors as the viewer's controls have them)."""
+    st = sim.settings
+    human = {
+        "stiffness": st.hand_stiffness,
+        "damping": st.hand_damping,
+        "rot_stiffness": st.hand_rot_stiffness,
+        "rot_damping": st.hand_rot_damping,
     }
+    return sim.rig.info(human=human, sensors=sim.sensor_settings)
 
 
 class Pacer:

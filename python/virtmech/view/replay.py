@@ -42,8 +42,9 @@ class Replay:
     def __init__(self, folder: str | Path):
         import mujoco
 
-        from ..sim.loop import device_physics, make_device, make_mechanism
-        from ..sim.model import HandBody, build_mjcf, compile_model
+        from .. import scenarios as sc
+        from ..builder import build
+        from ..sim.model import HandBody, build_mjcf, compile_model, device_physics
 
         folder = Path(folder)
         self.folder = folder
@@ -58,15 +59,15 @@ class Replay:
             info = json.loads(run_json.read_text(encoding="utf-8"))
             S = info["scenario"]
             self.name = str(info.get("name", folder.name))
-            self.device = make_device(S["device"])
-            self.mech = make_mechanism(S["mechanism"])
+            rig = build(sc.validate(S, source=str(run_json)), simulated=False)
         except (OSError, ValueError, KeyError, TypeError) as e:
             raise UserError(
                 f"LOG_DIR {folder}: run.json cannot be read as a run of `virtmech run` ({e})"
             ) from None
         self.info = info
         self.scenario_data = S
-        self.n, self.m = self.device.dof, self.mech.dof
+        self.device, self.mech = rig.device, rig.mechanism
+        self.n, self.m = rig.device.dof, rig.width
         self.T = float(S["controller"]["period_s"])
         built = build_mjcf(
             self.device,

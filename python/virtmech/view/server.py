@@ -331,46 +331,84 @@ class ViewServer:
             self._build_replay_gui()
         with gui.add_folder("Plots (the last seconds)"):
             ser = [{"label": "t [s]"}]
+
+            def plot(title: str, series: list, floor: tuple[float, float]):
+                """A plot over t whose y axis spans at least `floor` (uPlot's soft limits: a
+                tick every 0.2 or more, so that its 3-decimal labels never repeat; a
+                resting flicker shows at its true size), wide enough for a sign, with room
+                above its top label."""
+                return gui.add_uplot(
+                    data=(np.zeros(2),) * (1 + len(series)),
+                    series=tuple(ser + series),
+                    title=title,
+                    aspect=2.0,
+                    scales={
+                        "x": {"time": False},
+                        "y": {"range": {"min": {"soft": floor[0], "mode": 1},
+                                        "max": {"soft": floor[1], "mode": 1}}},
+                    },
+                    axes=({}, {"size": PLOT_AXIS_PX}),
+                    padding=(12, 12, 0, 0),  # room above the top label (not cut in half)
+                )
+
             self._plots = {
-                "force": gui.add_uplot(
-                    data=(np.zeros(2),) * 4,
-                    series=tuple(
-                        ser
-                        + [
-                            {"label": "|f| [N]", "stroke": "rgb(220,30,30)", "width": 2},
-                            {"label": "null [N]", "stroke": "rgb(20,160,60)", "width": 1.5},
-                            {"label": "range [N]", "stroke": "rgb(230,60,220)", "width": 1.5},
-                        ]
-                    ),
-                    title="force at the handle",
-                    aspect=2.0,
-                    scales={"x": {"time": False}},
+                "force": plot(
+                    "force at the handle",
+                    [
+                        {"label": "|f| [N]", "stroke": "rgb(220,30,30)", "width": 2},
+                        {"label": "null [N]", "stroke": "rgb(20,160,60)", "width": 1.5},
+                        {"label": "range [N]", "stroke": "rgb(230,60,220)", "width": 1.5},
+                    ],
+                    PLOT_FLOORS["force"],
                 ),
-                "dist": gui.add_uplot(
-                    data=(np.zeros(2),) * 2,
-                    series=tuple(
-                        ser + [{"label": "dist [mm]", "stroke": "rgb(40,110,230)", "width": 2}]
-                    ),
-                    title="distance from the mechanism",
-                    aspect=2.0,
-                    scales={"x": {"time": False}},
+                "dist": plot(
+                    "distance from the mechanism",
+                    [{"label": "dist [mm]", "stroke": "rgb(40,110,230)", "width": 2}],
+                    PLOT_FLOORS["dist"],
                 ),
-                "energy": gui.add_uplot(
-                    data=(np.zeros(2),) * 3,
-                    series=tuple(
-                        ser
-                        + [
-                            {"label": "work on hand [mJ]", "stroke": "rgb(200,120,0)", "width": 2},
-                            {"label": "tank [mJ]", "stroke": "rgb(90,90,90)", "width": 1.5},
-                        ]
-                    ),
-                    title="energy",
-                    aspect=2.0,
-                    scales={"x": {"time": False}},
+                "energy": plot(
+                    "energy",
+                    [
+                        {"label": "work on hand [mJ]", "stroke": "rgb(200,120,0)", "width": 2},
+                        {"label": "tank [mJ]", "stroke": "rgb(90,90,90)", "width": 1.5},
+                    ],
+                    PLOT_FLOORS["energy"],
                 ),
             }
+            self._gui["plots_note"] = gui.add_markdown(self._plots_note())
+
+    def _plots_note(self) -> str:
+        """What the plots show at rest, for this run's encoders and gains."""
+        counts = None
+        if self.mode == "live":
+            counts = self.sim.scenario.data["sensors"]["counts_per_rev"]
+        else:
+            counts = (self.replay.info.get("scenario") or {}).get("sensors", {}).get(
+                "counts_per_rev"
+            )
+        enc = (
+            f"{counts} counts per revolution ({2e3 * np.pi / counts:.2f} mrad)"
+            if counts
+            else "their counts per revolution"
+        )
+        (f0, f1), (d0, d1), (e0, e1) = (PLOT_FLOORS[k] for k in ("force", "dist", "energy"))
+        return (
+            f"<small>Each y axis spans at least force {f0:g} to {f1:g} N, distance {d0:g} to "
+            f"{d1:g} mm, energy {e0:g} to {e1:g} mJ. At rest |f| flickers by a few "
+            "hundredths of a newton: the encoders "
+            f"read the joints in steps of one count, {enc}; the handle dithers across one "
+            "count, and the spring Kp (and the damper Kv on the velocity read from the "
+            "counts) turns each step into a step of force. Finer encoders ([sensors] "
+            "counts_per_rev) steady it.</small>"
+        )
 
     def _build_live_gui(self) -> None:
+        self._add_live_controls()
+        self._wire_settings()
+        self._wire_live_buttons()
+
+    def _add_live_controls(self) -> None:
+        """The live mode's folders: the simulation, the controller, the hand, the sensors."""
         from .. import scenarios as sc
 
         gui, g = self.server.gui, self._gui
@@ -427,6 +465,11 @@ class ViewServer:
                 "delay [cycles]", min=0, max=20, step=1, initial_value=s.delay_cycles
             )
 
+    def _wire_settings(self) -> None:
+        """The controls that change the settings: each change sent to the simulation, which
+        applies the latest between stretches."""
+        g = self._gui
+
         def settings_changed(_):
             if self._guard:
                 return
@@ -471,6 +514,10 @@ class ViewServer:
             "delay_cycles",
         ):
             g[key].on_update(settings_changed)
+
+    def _wire_live_buttons(self) -> None:
+        """Pause, reset, the scenario, record, the target to the handle, the target typed."""
+        g = self._gui
 
         @g["pause"].on_update
         def _(_):
@@ -762,6 +809,12 @@ class ViewServer:
         """Blocks until stop() (or Ctrl-C in the caller)."""
         while not self._stop.wait(0.2):
             pass
+
+
+#: each plot's y axis spans at least this (soft limits, in the plot's unit)
+PLOT_FLOORS = {"force": (0.0, 1.0), "dist": (0.0, 1.0), "energy": (-0.1, 0.1)}
+#: the plots' y axes' width [CSS px]: room for a sign and four digits
+PLOT_AXIS_PX = 60
 
 
 def up_of_replay(replay) -> np.ndarray:

@@ -432,6 +432,181 @@ def _no_overlap(fig, texts: list) -> list:
     return [tuple(float(x) for x in k.extents) for k in kept]
 
 
+def distinct_strokes(order, strokes: dict, tol: float) -> list:
+    """The keys of `order` whose stroke (a segment, 2 x 2) does not lie mostly on one kept
+    before it: a stroke is dropped when more than 4/5 of it, or of a kept one, is within
+    `tol` of the other."""
+
+    def near(a, b) -> float:  # the share of segment a within tol of segment b
+        pts = a[0] + np.linspace(0.0, 1.0, 101)[:, None] * (a[1] - a[0])
+        d = b[1] - b[0]
+        w = np.clip((pts - b[0]) @ d / max(float(d @ d), 1e-300), 0.0, 1.0)
+        return float(np.mean(np.linalg.norm(pts - (b[0] + w[:, None] * d), axis=1) <= tol))
+
+    kept: list = []
+    for k in order:
+        if all(near(strokes[k], strokes[j]) <= 0.8 and near(strokes[j], strokes[k]) <= 0.8
+               for j in kept):
+            kept.append(k)
+    return kept
+
+
+def readable_on_white(colour, contrast: float = 4.5) -> tuple:
+    """`colour` darkened, keeping its hue, until its contrast ratio against white reaches
+    `contrast` (WCAG 2: (1 + 0.05) / (L + 0.05), L the relative luminance; 4.5 is the
+    minimum for text): viridis' light yellows become readable labels."""
+    rgb = np.asarray(colour[:3], dtype=float)
+
+    def luminance(c) -> float:
+        lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+        return float(lin @ [0.2126, 0.7152, 0.0722])
+
+    while 1.05 / (luminance(rgb) + 0.05) < contrast:
+        rgb = rgb * 0.9
+    return (*rgb.tolist(), *colour[3:])
+
+
+def vector_text(x) -> str:
+    """A direction for an axis label: (0.97, 0, -0.242), three decimals, no "-0"."""
+    return "(" + ", ".join(f"{c:g}" for c in np.round(np.asarray(x, dtype=float), 3) + 0.0) + ")"
+
+
+class _PlaneFigure:
+    """plane_figure's drawing, stage by stage, over the rows it draws."""
+
+    def __init__(self, plt, result, force_scale: float):
+        self.plt, self.result = plt, result
+        self.mech = mech = _mechanism(result)
+        self.L = L = _length(mech)
+        self.P = result.cols("px", "py", "pz")
+        self.S = result.cols("sx", "sy", "sz")
+        self.F = result.cols("fx", "fy", "fz")
+        self.F1 = result.cols("ff1x", "ff1y", "ff1z")
+        self.F2 = result.cols("ff2x", "ff2y", "ff2z")
+        self.tips = self.P + L * self.S
+        self.view = VIEWS.get(mech["type"], _view_default)(mech, self.P, self.tips)
+        self.u, self.v = self.view.u, self.view.v
+        self.contacts = result.info.get("grip_contacts", [-0.015, -0.05])
+        self.resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
+        # a PlanarArm's tip is its pivot; a HandlePath holds the handle itself
+        self.draw_tip = mech["type"] not in ("PlanarArm", "HandlePath")
+        self.grip_len = max(0.45 * L, abs(min(self.contacts)) + 0.01)
+        self.scale = float(force_scale)
+        self.t = result.t
+        self.cmap = plt.get_cmap("viridis")
+
+    def uv(self, x):
+        x = np.atleast_2d(x)
+        return np.stack([x @ self.u, x @ self.v], axis=1)
+
+    def paths(self, ax):
+        """The handle's and the tip's paths."""
+        self.hp = hp = self.uv(self.P)
+        ax.plot(hp[:, 0], hp[:, 1], color="0.35", lw=0.8, label="handle path")
+        if self.draw_tip:
+            tp = self.uv(self.tips)
+            ax.plot(tp[:, 0], tp[:, 1], color="tab:brown", lw=0.8, ls="--", label="tip path")
+
+    def moments(self):
+        """The drawn moments: a stroke lying mostly on one drawn before hides it and piles
+        its time label on the other's, so strokes are kept in priority order (the first,
+        the last, the largest force, then in time)."""
+        P, S, L = self.P, self.S, self.L
+        idx = _snapshot_indices(self.result)
+        F_mag = np.linalg.norm(self.F, axis=1)
+        first = [int(idx[0]), int(idx[-1]), int(idx[np.argmax(F_mag[idx])])]
+        strokes = {int(k): self.uv(np.array([P[k] - self.grip_len * S[k], P[k] + 0.08 * L * S[k]]))
+                   for k in idx}
+        frame = np.vstack([self.hp] + list(strokes.values()))
+        tol = 0.02 * float(np.ptp(frame, axis=0).max())
+        self.rank = {k: (first.index(k) if k in first else 3, k) for k in strokes}
+        return np.array(sorted(distinct_strokes(sorted(strokes, key=self.rank.get), strokes, tol)))
+
+    def arrow(self, ax, at, force, color, lw, **kw):
+        f = self.uv(force)[0] * self.scale
+        if np.hypot(*f) > 1e-4 * self.L:
+            ax.annotate("", xy=at + f, xytext=at,
+                        arrowprops=dict(arrowstyle="-|>", color=color, lw=lw), **kw)
+
+    def stroke(self, ax, k: int, c, last: bool):
+        """The handle at cycle k (thick), its virtual probe (dotted), the device's force,
+        and at the last moment of a resisting run the finger forces."""
+        p, s, L = self.P[k], self.S[k], self.L
+        back = self.uv(np.array([p - self.grip_len * s, p + 0.08 * L * s]))
+        ax.plot(back[:, 0], back[:, 1], color=c, lw=5, solid_capstyle="round")
+        probe = self.uv(np.array([p, p + L * s]))
+        ax.plot(probe[:, 0], probe[:, 1], color=c, lw=0.8, ls=":")
+        if self.draw_tip:
+            ax.plot(*probe[1], marker="o", ms=3, color=c)
+        self.arrow(ax, self.uv(p)[0], self.F[k], "crimson", 2.0, zorder=6)
+        if self.resist and last:
+            for cnt, Ff, col in ((self.contacts[0], self.F1[k], "tab:blue"),
+                                 (self.contacts[1], self.F2[k], "tab:green")):
+                self.arrow(ax, self.uv(p + cnt * s)[0], Ff, col, 1.3)
+        return (k, self.uv(p - self.grip_len * s)[0], c)
+
+    def legend_proxies(self, ax):
+        ax.plot([], [], color=self.cmap(0.5), lw=5,
+                label="handle (thick) and virtual probe (dotted)")
+        mm = self.scale * 1e3
+        ax.plot([], [], color="crimson", lw=1.6,
+                label=f"device force (1 N = {mm:.3g} mm, the same in every figure)")
+        if self.resist:
+            ax.plot([], [], color="tab:blue", lw=1.3,
+                    label="finger forces at the end (1: nearer the handle origin)")
+            ax.plot([], [], color="tab:green", lw=1.3, label="finger 2 force")
+
+    def frame(self, ax):
+        """Frames the action: the handle path, the drawn handles, the tips and the
+        mechanism (drawn by its view)."""
+        uv = self.uv
+        pts = [self.hp, uv(self.P - self.grip_len * self.S)] + [uv(a) for a in self.view.anchors]
+        if self.draw_tip:
+            pts.append(uv(self.tips))
+        allp = np.vstack(pts)
+        lo, hi = allp.min(axis=0), allp.max(axis=0)
+        pad = 0.12 * max(hi - lo) + 0.004
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        if self.view.draw is not None:
+            self.view.draw(ax, uv)
+            ax.set_xlim(lo[0] - pad, hi[0] + pad)
+            ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_aspect("equal", adjustable="box")
+
+    def titles(self, fig, ax, norm) -> str:
+        ax.set_xlabel(f"u [m]  (u = {vector_text(self.u)})")
+        ax.set_ylabel(f"v [m]  (v = {vector_text(self.v)})")
+        r = self.result
+        desc = r.scenario.data["description"].split(":")[0].strip()
+        title = textwrap.fill(f"{r.scenario.name}: {desc}", 70) + f"\n{self.view.title}"
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2,
+                  frameon=False)
+        ax.grid(alpha=0.25)
+        sm = self.plt.cm.ScalarMappable(norm=norm, cmap=self.cmap)
+        fig.colorbar(
+            sm, ax=ax, shrink=0.5, fraction=0.04, pad=0.02, label="time of the drawn handle [s]"
+        )
+        return title
+
+    def time_labels(self, fig, ax, labels):
+        """The time labels: the first, the last and the largest force first; none
+        overlapping. Returns the kept labels' window extents."""
+        order = sorted(labels, key=lambda x: self.rank[x[0]])
+        box = dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8)
+        texts = []
+        for k, pos, c in order:
+            away = self.uv(-self.S[k])[0]  # past the handle's end, away from the probe
+            away = away / max(float(np.hypot(*away)), 1e-12)
+            texts.append(
+                ax.annotate(f"{self.t[k]:.2f} s", pos, fontsize=7, color=readable_on_white(c),
+                            textcoords="offset points", xytext=tuple(12 * away), ha="center",
+                            va="center", bbox=box, zorder=8)
+            )
+        return _no_overlap(fig, texts)
+
+
 def plane_figure(
     result,
     path: str | Path,
@@ -451,146 +626,21 @@ def plane_figure(
     from matplotlib.colors import Normalize
 
     result = select_rows(result, "plane", max_points, block_rows)
-    mech = _mechanism(result)
-    L = _length(mech)
-    P = result.cols("px", "py", "pz")
-    S = result.cols("sx", "sy", "sz")
-    F = result.cols("fx", "fy", "fz")
-    F1 = result.cols("ff1x", "ff1y", "ff1z")
-    F2 = result.cols("ff2x", "ff2y", "ff2z")
-    tips = P + L * S
-    view = VIEWS.get(mech["type"], _view_default)(mech, P, tips)
-    u, v = view.u, view.v
-    contacts = result.info.get("grip_contacts", [-0.015, -0.05])
-    resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
-    # a PlanarArm's tip is its pivot; a HandlePath holds the handle itself
-    draw_tip = mech["type"] not in ("PlanarArm", "HandlePath")
-
-    def uv(x):
-        x = np.atleast_2d(x)
-        return np.stack([x @ u, x @ v], axis=1)
-
-    grip_len = max(0.45 * L, abs(min(contacts)) + 0.01)
-    scale = float(force_scale)
-
+    d = _PlaneFigure(plt, result, force_scale)
     fig, ax = plt.subplots(figsize=(7.0, 7.0), dpi=110, layout="constrained")
-    hp = uv(P)
-    ax.plot(hp[:, 0], hp[:, 1], color="0.35", lw=0.8, label="handle path")
-    if draw_tip:
-        tp = uv(tips)
-        ax.plot(tp[:, 0], tp[:, 1], color="tab:brown", lw=0.8, ls="--", label="tip path")
-    idx = _snapshot_indices(result)
-    cmap = plt.get_cmap("viridis")
-    t = result.t
-    norm = Normalize(0.0, max(float(t[-1]), 1e-9))
-    labels = []
-    for k in idx:
-        c = cmap(norm(t[k]))
-        p, s = P[k], S[k]
-        back = uv(np.array([p - grip_len * s, p + 0.08 * L * s]))
-        ax.plot(back[:, 0], back[:, 1], color=c, lw=5, solid_capstyle="round")
-        probe = uv(np.array([p, p + L * s]))
-        ax.plot(probe[:, 0], probe[:, 1], color=c, lw=0.8, ls=":")
-        if draw_tip:
-            ax.plot(*probe[1], marker="o", ms=3, color=c)
-        f = uv(F[k])[0] * scale
-        pu = uv(p)[0]
-        if np.hypot(*f) > 1e-4 * L:
-            ax.annotate(
-                "",
-                xy=pu + f,
-                xytext=pu,
-                zorder=6,
-                arrowprops=dict(arrowstyle="-|>", color="crimson", lw=2.0),
-            )
-        if resist and k == idx[-1]:
-            for cnt, Ff, col in (
-                (contacts[0], F1[k], "tab:blue"),
-                (contacts[1], F2[k], "tab:green"),
-            ):
-                pc_ = uv(p + cnt * s)[0]
-                ff = uv(Ff)[0] * scale
-                if np.hypot(*ff) > 1e-4 * L:
-                    ax.annotate(
-                        "",
-                        xy=pc_ + ff,
-                        xytext=pc_,
-                        arrowprops=dict(arrowstyle="-|>", color=col, lw=1.3),
-                    )
-        labels.append((k, uv(p - grip_len * s)[0], c))
-    # legend proxies
-    ax.plot([], [], color=cmap(0.5), lw=5, label="handle (thick) and virtual probe (dotted)")
-    mm = scale * 1e3
-    ax.plot(
-        [],
-        [],
-        color="crimson",
-        lw=1.6,
-        label=f"device force (1 N = {mm:.3g} mm, the same in every figure)",
-    )
-    if resist:
-        ax.plot(
-            [],
-            [],
-            color="tab:blue",
-            lw=1.3,
-            label="finger forces at the end (1: nearer the handle origin)",
-        )
-        ax.plot([], [], color="tab:green", lw=1.3, label="finger 2 force")
-    # frame the action: the handle path, the drawn handles, the tips and the mechanism
-    pts = [hp, uv(P - grip_len * S)] + [uv(a) for a in view.anchors]
-    if draw_tip:
-        pts.append(uv(tips))
-    allp = np.vstack(pts)
-    lo, hi = allp.min(axis=0), allp.max(axis=0)
-    pad = 0.12 * max(hi - lo) + 0.004
-    ax.set_xlim(lo[0] - pad, hi[0] + pad)
-    ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    if view.draw is not None:
-        view.draw(ax, uv)
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    ax.set_aspect("equal", adjustable="box")
-    ax.set_xlabel(f"u [m]  (u = {np.round(u, 3).tolist()})")
-    ax.set_ylabel(f"v [m]  (v = {np.round(v, 3).tolist()})")
-    desc = result.scenario.data["description"].split(":")[0].strip()
-    title = textwrap.fill(f"{result.scenario.name}: {desc}", 70) + f"\n{view.title}"
-    ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
-    ax.grid(alpha=0.25)
-    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(
-        sm, ax=ax, shrink=0.5, fraction=0.04, pad=0.02, label="time of the drawn handle [s]"
-    )
-    # time labels: the first, the last and the largest force first; none overlapping
-    f = np.linalg.norm(F, axis=1)
-    first = {int(idx[0]), int(idx[-1]), int(idx[np.argmax(f[idx])])}
-    order = sorted(labels, key=lambda x: (x[0] not in first, x[0]))
-    box = dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8)
-    texts = []
-    for k, pos, c in order:
-        away = uv(-S[k])[0]  # past the handle's end, away from the probe
-        away = away / max(float(np.hypot(*away)), 1e-12)
-        texts.append(
-            ax.annotate(
-                f"{t[k]:.2f} s",
-                pos,
-                fontsize=7,
-                color=c,
-                textcoords="offset points",
-                xytext=tuple(12 * away),
-                ha="center",
-                va="center",
-                bbox=box,
-                zorder=8,
-            )
-        )
-    kept = _no_overlap(fig, texts)
+    d.paths(ax)
+    idx = d.moments()
+    norm = Normalize(0.0, max(float(d.t[-1]), 1e-9))
+    labels = [d.stroke(ax, k, d.cmap(norm(d.t[k])), k == idx[-1]) for k in idx]
+    d.legend_proxies(ax)
+    d.frame(ax)
+    title = d.titles(fig, ax, norm)
+    kept = d.time_labels(fig, ax, labels)
     fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
     return {
         "title": title,
-        "force_scale_m_per_n": scale,
+        "force_scale_m_per_n": d.scale,
         "time_labels": kept,
         "rows": result.n_cycles,
     }
@@ -623,8 +673,7 @@ def _panel_force(ax, result, mech, t, F) -> None:
     ax.plot(t, fh, color="0.5", lw=0.8, ls="--", label="|f| hand")
     ax.set_ylabel("force [N]")
     top = max(float(fmag.max()), float(fh.max()), 0.1)
-    ax.set_ylim(min(ax.get_ylim()[0], -0.05 * top), 1.35 * top)
-    ax.legend(fontsize=7, ncol=4, loc="upper right", framealpha=0.9)
+    ax.set_ylim(min(ax.get_ylim()[0], -0.05 * top), 1.08 * top)
 
 
 def _panel_distance_log(ax, result, mech, t, F) -> None:
@@ -640,7 +689,6 @@ def _panel_distance_log(ax, result, mech, t, F) -> None:
     ax.set_ylabel(f"{what} [mm]")
     ax.set_yscale("log")
     ax.set_ylim(floor, max(30.0, 2 * float(dmm.max())))
-    ax.legend(fontsize=7, loc="upper right")
 
 
 def _panel_angles(ax, result, mech, t, F) -> None:
@@ -651,9 +699,6 @@ def _panel_angles(ax, result, mech, t, F) -> None:
     ax.plot(t, np.degrees(result.col("theta_star0")), ls="--", label="mechanism θ* (eq. 25)")
     ax.plot(t, np.degrees(result.col("theta0")), ls=":", label="mechanism θ (nearest)")
     ax.set_ylabel("angle on the\ncircle [deg]")
-    lo, hi = ax.get_ylim()
-    ax.set_ylim(lo, hi + 0.35 * (hi - lo))
-    ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
 
 
 def _panel_tip_height(ax, result, mech, t, F) -> None:
@@ -663,16 +708,16 @@ def _panel_tip_height(ax, result, mech, t, F) -> None:
     g = geometry_of(mech)
     target = g.target if g is not None else "the mechanism"
     ax.axhline(0.0, color="tab:red", ls="--", lw=0.8, label=target)
-    ax.fill_between(
-        t, h * 1e3, 0.0, where=h < 0, color="tab:red", alpha=0.15, label="tip behind it"
-    )
+    if mech.get("unilateral"):  # a bilateral mechanism has no side the tip may not go to
+        ax.fill_between(
+            t, h * 1e3, 0.0, where=h < 0, color="tab:red", alpha=0.15, label="tip behind it"
+        )
     if mech["type"] not in ("Probe", "SurfaceProbe"):
         ax.plot(
             t, result.col("dist_across") * 1e3, color="tab:blue", lw=0.9, label="tip offset across"
         )
     what = target if mech["type"] in ("Probe", "SurfaceProbe") else "it, along its normal"
     ax.set_ylabel(f"tip height above\n{what} [mm]")
-    ax.legend(fontsize=7, loc="lower left", ncol=2)
 
 
 def _panel_normal_force(ax, result, mech, t, F) -> None:
@@ -694,9 +739,6 @@ def _panel_normal_force(ax, result, mech, t, F) -> None:
     ax.plot(t, along, color="crimson", label=f"device force along {what}")
     ax.plot(t, kp * depth, color="0.3", ls=":", lw=1.2, label=f"Kp × depth (Kp = {kp:g} N/m)")
     ax.set_ylabel("force along the\nnormal [N]")
-    lo, hi = ax.get_ylim()
-    ax.set_ylim(lo, hi + 0.35 * (hi - lo))
-    ax.legend(fontsize=7, ncol=2, loc="upper left", framealpha=0.9)
 
 
 def _panel_member(ax, result, mech, t, F) -> None:
@@ -708,7 +750,6 @@ def _panel_member(ax, result, mech, t, F) -> None:
                     color="tab:orange", alpha=0.3, label="switching (force rate-limited)")
     ax.set_ylabel("mechanism set\nmember")
     ax.set_yticks(np.arange(-1, int(member.max()) + 1))
-    ax.legend(fontsize=7, loc="upper right", framealpha=0.9)
 
 
 def _panel_fingers(ax, result, mech, t, F) -> None:
@@ -722,9 +763,6 @@ def _panel_fingers(ax, result, mech, t, F) -> None:
     ax.plot(t, np.sum(F * across, axis=1), color="crimson", lw=0.8, label="device (across stylus)")
     ax.axhline(0, color="0.5", lw=0.6)
     ax.set_ylabel("force [N]")
-    lo, hi = ax.get_ylim()
-    ax.set_ylim(lo, hi + 0.45 * (hi - lo))
-    ax.legend(fontsize=7, ncol=3, loc="upper right", framealpha=0.9)
 
 
 #: mechanism type -> the panels after the force (a type not listed: the distance alone)
@@ -762,14 +800,16 @@ def time_figure(
     if resist:
         panels.append(_panel_fingers)
     rows = len(panels)
-    fig, axes = plt.subplots(rows, 1, figsize=(7.5, 2.1 * rows + 0.6), dpi=110, sharex=True)
+    fig, axes = plt.subplots(rows, 1, figsize=(9.5, 2.1 * rows + 0.6), dpi=110, sharex=True,
+                             layout="constrained")
     axes = np.atleast_1d(axes)
     for ax, panel in zip(axes, panels):
         panel(ax, result, mech, t, F)
         ax.grid(alpha=0.3)
+        # beside the panel, where it covers none of its curves
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     axes[-1].set_xlabel("t [s]")
     fig.suptitle(f"{result.scenario.name}", fontsize=10)
-    fig.tight_layout()
     fig.savefig(path)
     out = {"panels": [ax.get_ylabel() for ax in axes], "rows": result.n_cycles}
     plt.close(fig)
@@ -780,12 +820,86 @@ def time_figure(
 SHAPED = ("SurfaceProbe", "CurveGuide", "HandlePath")
 
 
+#: the world's axes by name
+AXIS_NAMES = "xyz"
+
+
+def world_up(scenario) -> np.ndarray:
+    """The unit vector up in the scenario's world: against gravity (the PHANTOM Omni's
+    OpenHaptics frame: +y; other devices: +z)."""
+    from ..builder import make_device
+    from ..sim.model import world_gravity
+
+    g = world_gravity(make_device(scenario.data["device"]))
+    return -g / np.linalg.norm(g)
+
+
+def scene_axes(up) -> tuple[list[int], np.ndarray]:
+    """The world's axes drawn as a 3-D plot's (X, Y, Z): Z the world axis nearest `up` (its
+    sign turned so that Z points up), X and Y the other two in cyclic order (a right-handed
+    plot of the same world: for up = +y, (X, Y, Z) = (z, x, y)). Returns the world axis of
+    each plot axis and its sign (X, Y, Z) = sign * world[axes]."""
+    up = np.asarray(up, dtype=float)
+    k = int(np.argmax(np.abs(up)))
+    axes = [(k + 1) % 3, (k + 2) % 3, k]
+    sign = np.ones(3)
+    if up[k] < 0:  # turn two axes: Z up, the plot still right-handed
+        sign[1:] = -1.0
+    return axes, sign
+
+
+def _horizontal(v, up) -> np.ndarray:
+    """v (a vector or rows of vectors) without its part along up."""
+    v = np.asarray(v, dtype=float)
+    return v - np.multiply.outer(v @ up, up)
+
+
+def scene_view(mech: dict, tips, S, up) -> tuple[np.ndarray, float]:
+    """Where the 3-D figure is seen from: the camera's unit direction (world, from the scene
+    toward the camera) and its elevation [deg]. A surface from the hand's side (the side the
+    stylus leans toward, or the user's side for a stylus near vertical), 25° above, across
+    the tip's main motion, turned 30° so that depth shows; a curve from the side its normal
+    points to (the hand's), between 20° and 60° above."""
+    up = np.asarray(up, dtype=float)
+    hand = _horizontal(-np.mean(S, axis=0), up)  # where the hand holds the stylus from
+    if np.linalg.norm(hand) < 0.3:  # a stylus within 17° of vertical: the user's side, the
+        hand = np.roll(up, 1)  # axis after up (+z, toward the user, in OpenHaptics' frame)
+    hand /= np.linalg.norm(hand)
+    if "surface" in mech:
+        W = _horizontal(tips - tips.mean(axis=0), up)
+        if np.abs(W).max() > 1e-6:
+            d = np.linalg.svd(W, full_matrices=False)[2][0]
+            side = np.cross(up, _horizontal(d, up))
+            c = side if side @ hand >= 0 else -side
+            c = c / np.linalg.norm(c) if np.linalg.norm(c) > 1e-9 else hand
+        else:
+            c = hand
+        turn = np.radians(30.0)  # about up: c cos + (up x c) sin
+        c = c * np.cos(turn) + np.cross(up, c) * np.sin(turn)
+        elev = 25.0
+    else:
+        n = np.asarray(mech.get("normal", up), dtype=float)
+        n /= np.linalg.norm(n)
+        elev = float(np.clip(np.degrees(np.arcsin(np.clip(n @ up, -1, 1))), 20.0, 60.0))
+        h = _horizontal(n, up)
+        c = h / np.linalg.norm(h) if np.linalg.norm(h) > 0.2 else hand
+        turn = np.radians(30.0)
+        c = c * np.cos(turn) + np.cross(up, c) * np.sin(turn)
+    e = np.radians(elev)
+    return np.cos(e) * c + np.sin(e) * up, elev
+
+
 def scene_figure(result, path: str | Path, max_points: int | None = None,
                  block_rows: int | None = None) -> dict:
     """The mechanism's surface or curve in 3-D with the handle's and the tip's paths, the
     tip coloured where it touches (dist_normal <= 0 for a probe on a surface) and the
-    stylus at moments of the run. Returns {"rows": the log's rows}."""
+    stylus at moments of the run. The world's up (against gravity: +y in the Omni's
+    OpenHaptics frame) is drawn up, the three axes at one scale, seen from the hand's side
+    (scene_view). Returns {"rows": the log's rows, "axes": the world axis of each plot axis
+    (X, Y, Z), "sign": their signs, "elev", "azim": the view [deg]}."""
     plt = _plt()
+    from matplotlib.ticker import MaxNLocator
+
     result = select_rows(result, "plane", max_points, block_rows)
     mech = _mechanism(result)
     shape = _shape_of(mech)
@@ -793,39 +907,64 @@ def scene_figure(result, path: str | Path, max_points: int | None = None,
     P = result.cols("px", "py", "pz")
     S = result.cols("sx", "sy", "sz")
     tips = P + L * S
-    fig = plt.figure(figsize=(7.0, 6.0), dpi=110)
+    up = world_up(result.scenario)
+    axes, sign = scene_axes(up)
+
+    def plot(X):  # world points (..., 3) -> the plot's coordinates
+        return np.asarray(X)[..., axes] * sign
+
+    fig = plt.figure(figsize=(7.0, 6.4), dpi=110)
     ax = fig.add_subplot(projection="3d")
     if "surface" in mech:
-        G = surface_grid(shape, 20)
+        G = plot(surface_grid(shape, 20))
         ax.plot_wireframe(G[..., 0], G[..., 1], G[..., 2], color="0.6", lw=0.5,
                           label="the surface")
         touching = result.col("dist_normal") <= 0.0
+        shape_pts = G.reshape(-1, 3)
     else:
-        C = curve_points(shape, 300)
+        C = plot(curve_points(shape, 300))
         ax.plot(C[:, 0], C[:, 1], C[:, 2], color="0.35", ls="--", lw=1.2, label="the curve")
         touching = result.col("dist") <= 1e-3
-    ax.plot(P[:, 0], P[:, 1], P[:, 2], color="0.3", lw=0.8, label="handle path")
+        shape_pts = C
+    hp, tp = plot(P), plot(tips)
+    ax.plot(hp[:, 0], hp[:, 1], hp[:, 2], color="0.3", lw=0.8, label="handle path")
     if L > 0:
-        ax.plot(tips[:, 0], tips[:, 1], tips[:, 2], color="tab:brown", lw=0.8, ls=":",
+        ax.plot(tp[:, 0], tp[:, 1], tp[:, 2], color="tab:brown", lw=0.8, ls=":",
                 label="tip path")
-        ax.scatter(*tips[touching].T, s=2, color="crimson", label="tip touching / on it")
-    for k in _snapshot_indices(result):
-        seg = np.array([P[k] - 0.4 * _length(mech) * S[k], P[k] + L * S[k]])
-        ax.plot(seg[:, 0], seg[:, 1], seg[:, 2], color="tab:blue", lw=2.0, alpha=0.7)
-    X = np.vstack([P, tips])
-    c, r = X.mean(axis=0), 0.55 * float(np.ptp(X, axis=0).max() + 0.02)
+        ax.scatter(*tp[touching].T, s=2, color="crimson",
+                   label="tip touching" if "surface" in mech else "tip within 1 mm of it")
+    grip = 0.4 * _length(mech)
+    for n, k in enumerate(_snapshot_indices(result)):
+        seg = plot(np.array([P[k] - grip * S[k], P[k] + L * S[k]]))
+        ax.plot(seg[:, 0], seg[:, 1], seg[:, 2], color="tab:blue", lw=2.0, alpha=0.7,
+                label=None if n else "the stylus at moments of the run (hand end to tip)")
+    # one scale on every axis: a cube around the shape and the paths
+    X = np.vstack([hp, tp, shape_pts])
+    c = (X.max(axis=0) + X.min(axis=0)) / 2
+    r = 0.52 * float(np.ptp(X, axis=0).max()) + 0.005
     ax.set_xlim(c[0] - r, c[0] + r)
     ax.set_ylim(c[1] - r, c[1] + r)
     ax.set_zlim(c[2] - r, c[2] + r)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    ax.legend(fontsize=7, loc="upper left")
-    ax.set_title(f"{result.scenario.name}: {mech['type']} in 3-D", fontsize=10)
-    fig.tight_layout()
+    ax.set_box_aspect((1.0, 1.0, 1.0))
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(5))
+    names = [("−" if sg < 0 else "") + AXIS_NAMES[a] for a, sg in zip(axes, sign)]
+    ax.set_xlabel(f"{names[0]} [m]")
+    ax.set_ylabel(f"{names[1]} [m]")
+    ax.set_zlabel(f"{names[2]} [m]  (up)")
+    cam, elev = scene_view(mech, tips, S, up)
+    cp = plot(cam)
+    azim = float(np.degrees(np.arctan2(cp[1], cp[0])))
+    ax.view_init(elev=elev, azim=azim)
+    ax.set_title(f"{result.scenario.name}: {mech['type']} in 3-D, {AXIS_NAMES[axes[2]]} up",
+                 fontsize=10)
+    fig.tight_layout(rect=(0.0, 0.1, 1.0, 1.0))
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=7, loc="lower center", ncol=2,
+               frameon=False)
     fig.savefig(path)
     plt.close(fig)
-    return {"rows": result.n_cycles}
+    return {"rows": result.n_cycles, "axes": axes, "sign": sign.tolist(), "elev": elev,
+            "azim": azim}
 
 
 def write_figures(

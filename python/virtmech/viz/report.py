@@ -17,9 +17,9 @@ LABELS = [
     ("penetration_max_m", "max penetration [mm]", 1e3, "{:.3f}"),
     ("force_max_n", "max force [N]", 1.0, "{:.2f}"),
     ("force_rms_n", "RMS force [N]", 1.0, "{:.2f}"),
-    ("passive_torque_max", "max passive torque [N·m]", 1.0, "{:.3g}"),
+    ("passive_torque_max", "max torque on unpowered joints [N·m]", 1.0, "{:.3g}"),
     ("torque_fraction_max", "max torque / limit", 1.0, "{:.2f}"),
-    ("energy_to_user_j", "energy to user [mJ]", 1e3, "{:.2f}"),
+    ("energy_to_user_j", "work on user [mJ]", 1e3, "{:.2f}"),
     ("real_time_factor", "× real time", 1.0, "{:.1f}"),
 ]
 
@@ -29,7 +29,8 @@ def _fmt(v, scale, fmt, note: str | None = None) -> str:
     if v is None or (isinstance(v, float) and math.isnan(v)) or isinstance(v, str):
         why = note or "n/a: not defined for this run"
         return f'<span class="na" title="{html.escape(why)}">{html.escape(why)}</span>'
-    return html.escape(fmt.format(v * scale))
+    text = fmt.format(v * scale)
+    return html.escape(text.lstrip("-") if float(text) == 0.0 else text)  # no "-0.00"
 
 
 def _git(where: Path, *args: str) -> str:

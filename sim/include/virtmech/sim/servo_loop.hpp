@@ -22,7 +22,7 @@
 //
 // Where each quantity sits in a plan row and in a log row is not declared here: the caller
 // gives the column of each field (PlanLayout, LogLayout), from its one table of columns
-// (virtmech.sim.human.PLAN_COLUMNS and virtmech.sim.loop.log_columns in Python).
+// (virtmech.sim.human.PLAN_COLUMNS and virtmech.sim.log.log_columns in Python).
 #pragma once
 
 #include <mujoco/mujoco.h>
