@@ -2,8 +2,8 @@
 // time-stamp counter where it is invariant (x86-64 with CPUID's invariant-TSC bit; the
 // Linux "constant_tsc nonstop_tsc" flags), else std::chrono::steady_clock. One read of the
 // counter costs a few nanoseconds where a steady_clock read costs about 20 (a vDSO call);
-// a cycle takes two, and steady_clock makes the Omni + PlanarArm cycle 10 % longer
-// (docs/performance.md, "Hand-made routines"). A core built on <cmath> and steady_clock
+// a cycle takes two, and with steady_clock the Omni + PlanarArm cycle takes 9 % longer,
+// Omni + Probe's 5 % (docs/performance.md, "Hand-made routines"). A core built on <cmath> and steady_clock
 // alone (VIRTMECH_STD_MATH) uses steady_clock everywhere.
 #pragma once
 

@@ -1,6 +1,6 @@
-// When a Newton iteration may stop short of its last, rounding-level step (the step saved
-// gains 6 % of the omni + set4 cycle and 3 % of omni + surface_probe's: docs/performance.md,
-// "Hand-made routines"). Internal to the core.
+// When a Newton iteration may stop short of its last, rounding-level step: part of the
+// placements' algorithms (it decides where they stop), not a replacement of a library
+// routine (docs/performance.md, "Hand-made routines"). Internal to the core.
 #pragma once
 
 namespace virtmech::detail {

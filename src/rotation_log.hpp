@@ -16,8 +16,8 @@ namespace virtmech::detail {
 inline Eigen::Vector3d log_from_axis_part(const Eigen::Vector3d& d, double tr1) noexcept {
   // up to 2 atan(1/2) (53 degrees), u = |d| / tr1 = tan(angle / 2) <= 1/2, and angle d / |d|
   // = 2 (atan(u) / u) d / tr1 needs neither |d| nor a second division
-  // (the series gains 5 % of the Omni + PlanarArm cycle: docs/performance.md; a core built
-  // on <cmath> takes the atan2 below throughout)
+  // (docs/performance.md, "Hand-made routines"; a core built on <cmath> takes the atan2
+  // below throughout)
   const double dd = d.squaredNorm();
   if (!kStdMath && dd <= kAtanSeriesMaxZ * tr1 * tr1) {
     const double inv = 1.0 / tr1, z = dd * inv * inv;

@@ -1,7 +1,6 @@
 // Cholesky factorisation and solve for the Gauss-Newton placement's small joint-space
 // matrices (n <= kMaxDof), written as plain loops: at these sizes Eigen's LLT costs more
-// than the arithmetic (with it the arm6 + serial5 cycle takes 5 % longer: docs/performance.md,
-// "Hand-made routines"). Internal to the core.
+// than the arithmetic (docs/performance.md, "Hand-made routines"). Internal to the core.
 #pragma once
 
 #include <cmath>

@@ -1,6 +1,5 @@
 // Sine and cosine, and atan2, for the servo cycle. glibc's are correctly rounded and cost
-// more: with them the Omni + PlanarArm cycle takes 13 % longer for the sine and cosine and
-// 4 % for atan2 (docs/performance.md, "Hand-made routines"); these stay within 2 ulp of the
+// more (docs/performance.md, "Hand-made routines"); these stay within 2 ulp of the
 // exact values (tests/cpp/test_trig.cpp checks them against long double). Arguments beyond
 // what the reductions below serve go to the library's. The coefficients and constants are
 // scripts/trig_fits.py's (mpmath, 50 digits; tests/python/test_trig_fits.py regenerates and
