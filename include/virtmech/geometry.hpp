@@ -131,6 +131,9 @@ class NurbsCurve final : public Curve {
   void homogeneous_from_basis(double u, int span, int nd,
                               Eigen::Vector4d (&Cw)[kMaxDerivativeOrder + 1]) const noexcept;
 
+  // closest_point's view of the samples from a point (nurbs_curve.cpp)
+  struct Search;
+
   int n_ = 0, p_ = 1;
   // derivatives_in_span's arithmetic, an instance for the degree p (loops unrolled)
   void (*kernel_)(const Eigen::Vector4d* taylor, double x, int p, int order,
@@ -187,6 +190,14 @@ class NurbsSurface final : public Surface {
   void homogeneous_from_basis(double u, double v, int su, int sv, int nd,
                               Eigen::Vector4d (&Sw)[kMaxDerivativeOrder + 1]
                                                    [kMaxDerivativeOrder + 1]) const noexcept;
+
+  // the constructor's stages: each non-empty span pair's Taylor coefficients, the samples
+  // with their first derivatives, the cells' bounding spheres (after the samples)
+  void build_taylor();
+  void build_samples();
+  void build_cell_bounds();
+  // closest_point's view of the samples and cells from a point (nurbs_surface.cpp)
+  struct Search;
 
   int nu_ = 0, nv_ = 0, p_ = 1, q_ = 1;
   // derivatives_in_spans' arithmetic, an instance for the degrees (p, q) (loops unrolled)
