@@ -28,8 +28,9 @@ constexpr int kMaxNurbsDegree = 7;
 constexpr int kMaxDerivativeOrder = kMaxNurbsDegree;
 /// Largest number of closest-point samples a NurbsSurface takes (max(8, 2 degree) per
 /// non-empty knot span and direction, plus one, in u times in v: 1577 x 1577 for 200 x 200
-/// control points of degree 3). The samples and their cells take about 170 bytes each, and
-/// the constructor's time grows with them: a larger surface is refused.
+/// control points of degree 3). The samples, their cells and the cells' hierarchy take
+/// about 230 bytes a sample (about 1 GB at the limit), and the constructor's time grows with
+/// them (about 20 s for 200 x 200 points): a larger surface is refused.
 constexpr long kMaxNurbsSurfaceSamples = 1L << 22;
 
 /// Column k: the k-th derivative d^k C / du^k (column 0 the point).
@@ -160,14 +161,24 @@ class NurbsCurve final : public Curve {
 };
 
 namespace detail {
+/// Vectors alpha axis + rest with alpha in [alpha_lo, alpha_hi] and rest in a box: a bound
+/// on vectors of about one direction whose length varies (a box alone would spread a
+/// length's change over every coordinate a slanted axis has).
+struct VectorBound {
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+  double alpha_lo = 0.0, alpha_hi = 0.0;
+  Eigen::AlignedBox3d rest;
+};
+
 /// A block of sample cells [i0, i1) x [j0, j1) (cell (i, j) between samples (i, j) and
-/// (i + 1, j + 1)) in NurbsSurface::closest_point's hierarchy, with boxes holding what the
+/// (i + 1, j + 1)) in NurbsSurface::closest_point's hierarchy, with bounds on what the
 /// search reads there: the cells' bounding spheres; the samples [i0 - 1, i1 + 1] x
 /// [j0 - 1, j1 + 1] (those in range); the steps between neighbouring samples along u that
 /// end in rows [i0, i1 + 1] of columns [j0, j1], and along v likewise; the first
 /// derivatives S_u (both sides) and S_v (both sides) at the cells' corners.
 struct NurbsCellBlock {
-  Eigen::AlignedBox3d spheres, samples, step_u, step_v, su, sv;
+  Eigen::AlignedBox3d spheres, samples;
+  VectorBound step_u, step_v, su, sv;
   int i0 = 0, i1 = 0, j0 = 0, j1 = 0;
   int first_child = -1, children = 0;  ///< the children follow one another
 };
@@ -224,7 +235,7 @@ class NurbsSurface final : public Surface {
   void build_cell_bounds();
   void build_blocks();
   void build_block(int index, int i0, int i1, int j0, int j1, int depth);
-  void fill_leaf(detail::NurbsCellBlock& b) const;
+  void fill_block(detail::NurbsCellBlock& b) const;
   // the number of samples along knots (nurbs_basis' sample_parameters' count)
   static long sample_count(const Eigen::VectorXd& knots, int n, int p) noexcept;
   // closest_point's view of the samples, cells and blocks from a point

@@ -238,7 +238,7 @@ Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
   }
   Search search{*this, p};
   Search::Starts best;
-  search.candidates(search.nearest_sample(), best);
+  search.candidates(best);
   const detail::DistanceToSurface eval{*this, p};
   double best_f = kInf;
   Eigen::Vector2d best_x = lower_;

@@ -100,14 +100,12 @@ struct NurbsSurface::Search {
     return lb;
   }
 
-  // The nearest sample's distance (nurbs_surface_blocks.cpp). It bounds the least distance
-  // from above (the refinement from it descends), so a cell farther than it holds no
-  // minimum that counts: only the cells within it are searched.
-  double nearest_sample() const noexcept;
-  // Candidates (index i * mv + j, the start), in the cells within `near` of p: (1), (2)
-  // and (3) below in every such cell, as a scan of the cells in order (i, j) finds them
-  // (nurbs_surface_blocks.cpp)
-  void candidates(double near, Starts& best) const noexcept;
+  // Candidates (index i * mv + j, the start), in the cells within the nearest sample's
+  // distance of p: (1), (2) and (3) below in every such cell, as a scan of the cells in
+  // order (i, j) finds them (nurbs_surface_blocks.cpp). The nearest sample's distance
+  // bounds the least distance from above (the refinement from it descends), so a cell
+  // farther than it holds no minimum that counts.
+  void candidates(Starts& best) const noexcept;
   // the hierarchy's blocks for `visit` (nurbs_surface_blocks.cpp)
   template <class Visit>
   void walk(Visit& visit) const noexcept;
@@ -115,11 +113,8 @@ struct NurbsSurface::Search {
   // (1) .. (3) in cell (i, j) where it is within `near` of p, each keyed by its rank in a
   // scan of the cells in order (cell i * (mv - 1) + j, then its tests in order)
   void cell_candidates(int i, int j, double near, Starts& best) const noexcept {
-    const size_t cell = static_cast<size_t>(i) * (mv - 1) + j;
-    // the cell's sphere farther than the nearest sample: |c - p| - radius > near
-    const double reach = s.cell_radius_[cell] + near;
-    if ((s.cell_center_[cell] - p).squaredNorm() > reach * reach) return;
-    const std::int64_t key = static_cast<std::int64_t>(cell) * 16;
+    if (!within(i, j, near)) return;
+    const std::int64_t key = (static_cast<std::int64_t>(i) * (mv - 1) + j) * 16;
     for (int a = i; a <= i + 1; ++a)
       for (int b = j; b <= j + 1; ++b) local_min(a, b, best, key + 2 * (a - i) + (b - j));
     sign_change(i, j, best, key + 4);
@@ -127,6 +122,12 @@ struct NurbsSurface::Search {
     if (i + 2 == mu) edge_v(mu - 1, j, best, key + 7);
     if (j == 0) edge_u(i, 0, best, key + 8);
     if (j + 2 == mv) edge_u(i, mv - 1, best, key + 9);
+  }
+  // cell (i, j)'s sphere within `near` of p: |c - p| - radius <= near
+  bool within(int i, int j, double near) const noexcept {
+    const size_t cell = static_cast<size_t>(i) * (mv - 1) + j;
+    const double reach = s.cell_radius_[cell] + near;
+    return !((s.cell_center_[cell] - p).squaredNorm() > reach * reach);
   }
   // (1) sample (i, j) where it is a discrete local minimum of the distance
   void local_min(int i, int j, Starts& best, std::int64_t key) const noexcept {
