@@ -187,10 +187,6 @@ struct Best {
 
 constexpr int kCandidates = 24;
 
-/// NurbsSurface::closest_point keeps the samples' distances on the stack up to this many
-/// samples (8 KiB).
-constexpr int kKeptSamples = 1024;
-
 /// A bounding sphere's radius over the largest sampled distance from its centre (a curve's
 /// sample interval, a surface's cell: the shape departs from its samples by far less).
 constexpr double kSphereMargin = 1.5;

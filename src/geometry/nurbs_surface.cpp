@@ -5,16 +5,14 @@
 #include <stdexcept>
 #include <string>
 
-#include "closest_point_search.hpp"
 #include "nurbs_basis.hpp"
+#include "nurbs_surface_search.hpp"
 #include "span_kernels.hpp"
 #include "virtmech/geometry.hpp"
 
 namespace virtmech {
 
-using detail::Best;
 using detail::find_span;
-using detail::kCandidates;
 using detail::kD;
 using detail::kFall;
 using detail::kP;
@@ -44,6 +42,19 @@ void check_control_net(const Eigen::MatrixX3d& control_points, const Eigen::Matr
   }
 }
 
+// The number of closest-point samples within kMaxNurbsSurfaceSamples (their memory and the
+// constructor's time grow with it).
+void check_size(int nu, int nv, long su, long sv, int degree_u, int degree_v) {
+  if (su * sv <= kMaxNurbsSurfaceSamples) return;
+  throw std::invalid_argument(
+      "control_points: expected a surface of at most " +
+      std::to_string(kMaxNurbsSurfaceSamples) + " closest-point samples (about 260 x 260 " +
+      "control points of degree 3), got " + std::to_string(nu) + " x " + std::to_string(nv) +
+      " points of degrees (" + std::to_string(degree_u) + ", " + std::to_string(degree_v) +
+      "), " + std::to_string(su) + " x " + std::to_string(sv) + " samples; use fewer " +
+      "control points or a lower degree");
+}
+
 }  // namespace
 
 NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::MatrixXd& weights,
@@ -60,6 +71,7 @@ NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::
   check_control_net(control_points, weights, nu_, nv_, degree_u, degree_v);
   detail::check_knots("knots_u", knots_u, nu_, p_);
   detail::check_knots("knots_v", knots_v, nv_, q_);
+  check_size(nu_, nv_, sample_count(knots_u, nu_, p_), sample_count(knots_v, nv_, q_), p_, q_);
   lower_ = {knots_u[p_], knots_v[q_]};
   upper_ = {knots_u[nu_], knots_v[nv_]};
   kernel_ = detail::span_pair_kernel(p_, q_);
@@ -79,6 +91,7 @@ NurbsSurface::NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::
   creased_ = (mu > 0 && mu >= p_) || (mv > 0 && mv >= q_);
   build_samples();
   build_cell_bounds();
+  build_blocks();
 }
 
 void NurbsSurface::build_taylor() {
@@ -216,184 +229,16 @@ void NurbsSurface::derivatives_in_spans(double u, double v, int su, int sv, int 
   kernel_(C, x, y, p_, q_, detail::clamp_order(order), out);
 }
 
-// closest_point's view of the samples and cells from p.
-struct NurbsSurface::Search {
-  // (kept left uninitialised: nearest_sample() fills what is read)
-  Search(const NurbsSurface& surface, const Eigen::Vector3d& point) noexcept
-      : s(surface), p(point) {}
-
-  const NurbsSurface& s;
-  const Eigen::Vector3d& p;
-  const int mu = static_cast<int>(s.sample_u_.size()), mv = static_cast<int>(s.sample_v_.size());
-  // the samples' squared distances from p, kept on the stack where they fit (each is read
-  // by up to four cells' tests and nine samples' local-minimum tests)
-  const bool keep = mu * mv <= detail::kKeptSamples;
-  double kept[detail::kKeptSamples];
-
-  double d2(int i, int j) const noexcept {
-    const size_t k = static_cast<size_t>(i) * mv + j;
-    return keep ? kept[k] : (s.sample_p_[k] - p).squaredNorm();
-  }
-  // the gradient's parts at sample (i, j): from the right in u / from above in v, or (a
-  // cell's far corner, an edge interval's end) from the left / from below
-  double gu(int i, int j, bool left = false) const noexcept {
-    const size_t k = static_cast<size_t>(i) * mv + j;
-    return (left ? s.sample_su_left_ : s.sample_su_)[k].dot(s.sample_p_[k] - p);
-  }
-  double gv(int i, int j, bool below = false) const noexcept {
-    const size_t k = static_cast<size_t>(i) * mv + j;
-    return (below ? s.sample_sv_below_ : s.sample_sv_)[k].dot(s.sample_p_[k] - p);
-  }
-  // the distance from p of cell (i, j) at least (where that is > 0)
-  double cell_bound(int i, int j) const noexcept {
-    const size_t cell = static_cast<size_t>(i) * (mv - 1) + j;
-    return (s.cell_center_[cell] - p).norm() - s.cell_radius_[cell];
-  }
-  // the distance from p of the cells about sample (i, j) at least: a start's minimum lies
-  // in one of them
-  double cells_bound(int i, int j) const noexcept {
-    double lb = kInf;
-    for (int a = std::max(i - 1, 0); a <= std::min(i, mu - 2); ++a)
-      for (int b = std::max(j - 1, 0); b <= std::min(j, mv - 2); ++b)
-        lb = std::min(lb, cell_bound(a, b));
-    return lb;
-  }
-
-  // The samples' squared distances (kept), and the nearest sample's distance. It bounds the
-  // least distance from above (the refinement from it, the first, descends), so a cell
-  // farther than it holds no minimum that counts: only the cells within it are searched.
-  double nearest_sample() noexcept {
-    double least[4] = {kInf, kInf, kInf, kInf};  // (four chains of minima overlap)
-    for (size_t k = 0; k < s.sample_p_.size(); ++k) {
-      const double e = (s.sample_p_[k] - p).squaredNorm();
-      if (keep) kept[k] = e;
-      least[k % 4] = std::min(least[k % 4], e);
-    }
-    const double near2 = std::min(std::min(least[0], least[1]), std::min(least[2], least[3]));
-    return std::sqrt(near2);
-  }
-
-  // (1) sample (i, j) where it is a discrete local minimum of the distance
-  void local_min(int i, int j, Best<kCandidates>& best) const noexcept {
-    const double dij = d2(i, j);
-    for (int a = std::max(i - 1, 0); a <= std::min(i + 1, mu - 1); ++a)
-      for (int b = std::max(j - 1, 0); b <= std::min(j + 1, mv - 1); ++b)
-        if ((a != i || b != j) && d2(a, b) < dij) return;
-    best.add(i * mv + j, dij);
-  }
-  // (2) cell (i, j) where its corners' gradients change sign in u and in v (a minimum
-  // inside), started at the nearest corner; on a creased surface also from inside the cell
-  // (a corner on a crease may descend to the other side's minimum, and one beside it to
-  // this side's): index samples + cell
-  void sign_change(int i, int j, Best<kCandidates>& best) const noexcept {
-    double umin = kInf, umax = -kInf, vmin = kInf, vmax = -kInf, dmin = kInf;
-    int start = 0;
-    for (int a = i; a <= i + 1; ++a) {
-      for (int b = j; b <= j + 1; ++b) {
-        const double x = gu(a, b, a > i), y = gv(a, b, b > j), dd = d2(a, b);
-        umin = std::min(umin, x), umax = std::max(umax, x);
-        vmin = std::min(vmin, y), vmax = std::max(vmax, y);
-        if (dd < dmin) dmin = dd, start = a * mv + b;
-      }
-    }
-    if (umin <= 0.0 && umax >= 0.0 && vmin <= 0.0 && vmax >= 0.0) {
-      best.add(start, dmin);
-      if (s.creased_) best.add(mu * mv + i * (mv - 1) + j, dmin);
-    }
-  }
-  // (3) the interval (i, j)-(i, j + 1) of an edge u = const whose tangential gradient
-  // changes sign (a minimum on or near the edge)
-  void edge_v(int i, int j, Best<kCandidates>& best) const noexcept {
-    if (gv(i, j) <= 0.0 && gv(i, j + 1, true) >= 0.0) {
-      const bool first = d2(i, j) <= d2(i, j + 1);
-      best.add(i * mv + (first ? j : j + 1), std::min(d2(i, j), d2(i, j + 1)));
-    }
-  }
-  // ... and the interval (i, j)-(i + 1, j) of an edge v = const
-  void edge_u(int i, int j, Best<kCandidates>& best) const noexcept {
-    if (gu(i, j) <= 0.0 && gu(i + 1, j, true) >= 0.0) {
-      const bool first = d2(i, j) <= d2(i + 1, j);
-      best.add((first ? i : i + 1) * mv + j, std::min(d2(i, j), d2(i + 1, j)));
-    }
-  }
-
-  // Candidates (index i * mv + j, the start), in the cells within `near` of p: (1), (2) and
-  // (3) above
-  void candidates(double near, Best<kCandidates>& best) const noexcept {
-    for (int i = 0; i + 1 < mu; ++i) {
-      for (int j = 0; j + 1 < mv; ++j) {
-        // the cell's sphere farther than the nearest sample: |c - p| - radius > near
-        const size_t cell = static_cast<size_t>(i) * (mv - 1) + j;
-        const double reach = s.cell_radius_[cell] + near;
-        if ((s.cell_center_[cell] - p).squaredNorm() > reach * reach) continue;
-        for (int a = i; a <= i + 1; ++a)
-          for (int b = j; b <= j + 1; ++b) local_min(a, b, best);
-        sign_change(i, j, best);
-        if (i == 0) edge_v(0, j, best);
-        if (i + 2 == mu) edge_v(mu - 1, j, best);
-        if (j == 0) edge_u(i, 0, best);
-        if (j + 2 == mv) edge_u(i, mv - 1, best);
-      }
-    }
-  }
-
-  // candidate k's sample (i, j), or its cell (i, j) (in_cell)
-  void decode(int k, int& i, int& j, bool& in_cell) const noexcept {
-    in_cell = k >= mu * mv;
-    i = in_cell ? (k - mu * mv) / (mv - 1) : k / mv;
-    j = in_cell ? (k - mu * mv) % (mv - 1) : k % mv;
-  }
-  // the distance from p of where candidate k's minimum lies, at least
-  double bound(int k) const noexcept {
-    int i, j;
-    bool in_cell;
-    decode(k, i, j, in_cell);
-    return in_cell ? cell_bound(i, j) : cells_bound(i, j);
-  }
-  // candidate k's start: the sample, or a quarter of the way into the cell from its
-  // nearest corner
-  Eigen::Vector2d start(int k) const noexcept {
-    int i, j;
-    bool in_cell;
-    decode(k, i, j, in_cell);
-    Eigen::Vector2d x(s.sample_u_[static_cast<size_t>(i)], s.sample_v_[static_cast<size_t>(j)]);
-    if (!in_cell) return x;
-    const Eigen::Vector2d far(s.sample_u_[static_cast<size_t>(i) + 1],
-                              s.sample_v_[static_cast<size_t>(j) + 1]);
-    const Eigen::Vector2d mid = 0.5 * (x + far);
-    int a = 0, b = 0;
-    for (int c = 0; c < 4; ++c)
-      if (d2(i + c / 2, j + c % 2) < d2(i + a, j + b)) a = c / 2, b = c % 2;
-    const Eigen::Vector2d corner(a ? far[0] : x[0], b ? far[1] : x[1]);
-    return 0.5 * (corner + mid);
-  }
-
-  // Polish: along a crease (a knot of full multiplicity), or a knot where the Hessian
-  // jumps, the coupled steps zigzag; the 1-D problems with u, then v held, then both free
-  // again settle them (a C^2 surface has no such line).
-  void polish(double& best_f, Eigen::Vector2d& best_x) const noexcept {
-    const detail::DistanceToSurface eval{s, p};
-    for (int round = 0; round < 3; ++round) {
-      const double f0 = best_f;
-      for (int fixed = 0; fixed < 3; ++fixed) {
-        Eigen::Vector2d lo = s.lower_, hi = s.upper_, x = best_x;
-        if (fixed < 2) lo[fixed] = hi[fixed] = x[fixed];
-        const double f = detail::refine<2>(x, lo, hi, eval);
-        if (f < best_f) {
-          best_f = f;
-          best_x = x;
-        }
-      }
-      if (!(best_f < f0)) break;
-    }
-  }
-};
-
 Eigen::Vector2d NurbsSurface::closest_point(const Eigen::Vector3d& p,
                                             Eigen::Vector3d& point) const noexcept {
+  if (!p.allFinite()) {
+    // no distance from p is finite: no start does better than the first
+    point = evaluate(lower_[0], lower_[1]);
+    return lower_;
+  }
   Search search{*this, p};
-  Best<kCandidates> best;
-  search.candidates(search.nearest_sample(), best);
+  Search::Starts best;
+  search.candidates(best);
   const detail::DistanceToSurface eval{*this, p};
   double best_f = kInf;
   Eigen::Vector2d best_x = lower_;
