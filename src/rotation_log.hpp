@@ -23,6 +23,10 @@ inline Eigen::Vector3d log_from_axis_part(const Eigen::Vector3d& d, double tr1) 
     const double inv = 1.0 / tr1, z = dd * inv * inv;
     return (2.0 * inv * (1.0 + z * atan_series(z))) * d;
   }
+  if (kStdMath && dd <= 1e-16 * tr1 * tr1) {
+    // atan(u) / u = 1 - u^2 / 3 + ...: 1 to rounding for u^2 <= 1e-16 (and |d| may underflow)
+    return (2.0 / tr1) * d;
+  }
   const double n = std::sqrt(dd);
   return (2.0 * atan2(n, tr1) / n) * d;
 }
