@@ -232,6 +232,75 @@ void WeightedProjector::set_column() noexcept {
   inv_jwj_ = rank_ ? 1.0 / jwj : 0.0;
 }
 
+namespace {
+
+// G = A_w A_w^T for the k rows of s > 0 of A = diag(s) J (J's first m columns), its lower
+// triangle; returns tr(G)
+double weighted_gram(const Eigen::Matrix<double, 6, kMaxDof>& J, const Vector6& s, int m,
+                     int k, double (&G)[6][6]) noexcept {
+  int rows[6];
+  int c = 0;
+  for (int i = 0; i < 6; ++i) {
+    if (s[i] > 0.0) rows[c++] = i;
+  }
+  double tr = 0.0;
+  for (int a = 0; a < k; ++a) {
+    for (int b = 0; b <= a; ++b) {
+      double g = 0.0;
+      for (int j = 0; j < m; ++j) g += J(rows[a], j) * J(rows[b], j);
+      G[a][b] = s[rows[a]] * s[rows[b]] * g;
+    }
+    tr += G[a][a];
+  }
+  return tr;
+}
+
+// det(G) by cofactors (k <= 3), without the factorisation's chain of divisions: G is a Gram
+// matrix (eigenvalues >= -eps tr by rounding), so det(G) > 1e-11 tr^k / (k - 1)^(k - 1)
+// >> eps^2 tr^k rules out a pair of negative ones: G is positive definite, as the LDL^T
+// of gram_certified_ldl checks, and its determinant has errors of a few eps tr^k
+// `soft`: lambda_min(G) / tr(G) shown above kCertifiedSoft as well
+bool gram_certified_cofactors(const double (&G)[6][6], int k, double tr, bool& soft) noexcept {
+  if (k == 1) {
+    soft = true;  // lambda_min = tr
+    return true;
+  }
+  if (k == 2) {
+    const double det2 = G[0][0] * G[1][1] - G[1][0] * G[1][0];
+    soft = det2 > kCertifiedSoft * tr * tr;
+    return det2 > 1e-11 * tr * tr;
+  }
+  const double det3 = G[0][0] * (G[1][1] * G[2][2] - G[2][1] * G[2][1]) -
+                      G[1][0] * (G[1][0] * G[2][2] - G[2][1] * G[2][0]) +
+                      G[2][0] * (G[1][0] * G[2][1] - G[1][1] * G[2][0]);
+  soft = 4.0 * det3 > kCertifiedSoft * tr * tr * tr;
+  return 4.0 * det3 > 1e-11 * tr * tr * tr;
+}
+
+// det(G / tr) from an LDL^T of G / tr (false where a pivot is not positive), then
+// lambda_min / tr >= det_n (k - 1)^(k - 1) > 1e-11
+bool gram_certified_ldl(const double (&G)[6][6], int k, double tr, bool& soft) noexcept {
+  double L[6][6], D[6], det = 1.0;
+  for (int j = 0; j < k; ++j) {
+    double d = G[j][j] / tr;
+    for (int p = 0; p < j; ++p) d -= L[j][p] * L[j][p] * D[p];
+    if (!(d > 0.0)) return false;
+    D[j] = d;
+    det *= d;
+    for (int i = j + 1; i < k; ++i) {
+      double l = G[i][j] / tr;
+      for (int p = 0; p < j; ++p) l -= L[i][p] * L[j][p] * D[p];
+      L[i][j] = l / d;
+    }
+  }
+  double spread = 1.0;
+  for (int i = 1; i < k; ++i) spread *= static_cast<double>(k - 1);
+  soft = det * spread > kCertifiedSoft;
+  return det * spread > 1e-11;
+}
+
+}  // namespace
+
 // True when the Gram matrix G = A_w A_w^T of A's k weighted rows shows them of full row rank
 // with a margin: lambda_min(G) >= det(G) / (tr(G) / (k - 1))^(k - 1) (the other k - 1
 // eigenvalues' product is at most that, by AM-GM) above 1e-11 tr(G), i.e. sigma_k(A) >
@@ -246,60 +315,11 @@ bool WeightedProjector::full_row_rank_certified() const noexcept {
   // every entry finite, the zero-weighted rows' too (a factorisation would find 0 * NaN and
   // give NaN results, as documented)
   if (!J_.leftCols(m).allFinite()) return false;
-  int rows[6];
-  int c = 0;
-  for (int i = 0; i < 6; ++i) {
-    if (s_[i] > 0.0) rows[c++] = i;
-  }
   double G[6][6];
-  double tr = 0.0;
-  for (int a = 0; a < k; ++a) {
-    for (int b = 0; b <= a; ++b) {
-      double g = 0.0;
-      for (int j = 0; j < m; ++j) g += J_(rows[a], j) * J_(rows[b], j);
-      G[a][b] = s_[rows[a]] * s_[rows[b]] * g;
-    }
-    tr += G[a][a];
-  }
+  const double tr = weighted_gram(J_, s_, m, k, G);
   if (!(tr > 0.0) || !std::isfinite(tr)) return false;  // also NaN
-  if (k <= 3) {
-    // det(G) by cofactors, without the factorisation's chain of divisions: G is a Gram
-    // matrix (eigenvalues >= -eps tr by rounding), so det(G) > 1e-11 tr^k / (k - 1)^(k - 1)
-    // >> eps^2 tr^k rules out a pair of negative ones: G is positive definite, as the LDL^T
-    // below checks, and its determinant has errors of a few eps tr^k
-    if (k == 1) {
-      certified_soft_ = true;  // lambda_min = tr
-      return true;
-    }
-    if (k == 2) {
-      const double det2 = G[0][0] * G[1][1] - G[1][0] * G[1][0];
-      certified_soft_ = det2 > kCertifiedSoft * tr * tr;
-      return det2 > 1e-11 * tr * tr;
-    }
-    const double det3 = G[0][0] * (G[1][1] * G[2][2] - G[2][1] * G[2][1]) -
-                        G[1][0] * (G[1][0] * G[2][2] - G[2][1] * G[2][0]) +
-                        G[2][0] * (G[1][0] * G[2][1] - G[1][1] * G[2][0]);
-    certified_soft_ = 4.0 * det3 > kCertifiedSoft * tr * tr * tr;
-    return 4.0 * det3 > 1e-11 * tr * tr * tr;
-  }
-  double L[6][6], D[6], det = 1.0;
-  for (int j = 0; j < k; ++j) {
-    double d = G[j][j] / tr;
-    for (int p = 0; p < j; ++p) d -= L[j][p] * L[j][p] * D[p];
-    if (!(d > 0.0)) return false;
-    D[j] = d;
-    det *= d;
-    for (int i = j + 1; i < k; ++i) {
-      double l = G[i][j] / tr;
-      for (int p = 0; p < j; ++p) l -= L[i][p] * L[j][p] * D[p];
-      L[i][j] = l / d;
-    }
-  }
-  // lambda_min / tr >= det_n (k - 1)^(k - 1), det_n = det(G / tr)
-  double spread = 1.0;
-  for (int i = 1; i < k; ++i) spread *= static_cast<double>(k - 1);
-  certified_soft_ = det * spread > kCertifiedSoft;
-  return det * spread > 1e-11;
+  return k <= 3 ? gram_certified_cofactors(G, k, tr, certified_soft_)
+                : gram_certified_ldl(G, k, tr, certified_soft_);
 }
 
 void WeightedProjector::factorise() const noexcept {

@@ -14,9 +14,18 @@ virtmech schema                       the JSON Schema of the scenario format
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
 virtmech view [SCENARIO | LOG_DIR]    a live 3-D viewer in the browser, the mouse as the hand;
              [--port P] [--open]      or a run's log played back (docs/viewer.md)
+virtmech drive SCENARIO --device openhaptics   the scenario's mechanism on a real device
+             [--library PATH] [--device-name NAME] [--duration S] [--out DIR]
+             [--format csv|parquet] [--watchdog-ms MS] [--figures] [--view PORT]
+             [--quiet]                (docs/devices.md, "Running on a real Touch")
+virtmech ros2 SCENARIO [--duration S] [--set KEY=VALUE ...] [--ros-args ...]
+                                      the scenario's renderer as a ROS 2 node (docs/ros2.md)
+virtmech ros2-sim SCENARIO [--lockstep] [--command TOPIC] [--duration S] [--out DIR]
+             [--seed N] [--set KEY=VALUE ...] [--ros-args ...]
+                                      the scenario's simulated device as a ROS 2 driver
 
 A mistake in the input (a scenario, a flag, a path; virtmech.errors.UserError) is reported
-as one message on stderr, with exit status 2.
+as one message on stderr, with exit status 2; a device fault (drive) with exit status 1.
 """
 
 from __future__ import annotations
@@ -78,9 +87,12 @@ def _require_format(fmt: str) -> None:
 
 def _run_one(scenario, out_dir, seed, progress: bool, fmt: str = "csv", chunk_s=None) -> dict:
     """Runs a scenario into out_dir (checked as --out; virtmech.runner writes the log,
-    run.json and the figures); returns the metrics."""
+    run.json and the figures); returns the metrics. The scenario's objects are built first,
+    so that a mistake the format cannot see (an array of the wrong shape) leaves no folder."""
+    from .builder import preflight
     from .runner import run_scenario
 
+    preflight(scenario)
     out = _out_dir(out_dir)
     return run_scenario(
         scenario, seed=seed, progress=progress, out=out, fmt=fmt, chunk_s=chunk_s
@@ -125,12 +137,12 @@ def _sets(texts) -> tuple[dict, list[str]]:
     return out, errors
 
 
-def _set_and_duration(s, args) -> tuple:
-    """The scenario with the --set keys and --duration, and every mistake of those flags
+def _with_sets(s, texts) -> tuple:
+    """The scenario with the --set keys, the keys' values, and every mistake of those flags
     (each --set on its own first, so that its message names it)."""
     from . import scenarios as sc
 
-    sets, errors = _sets(args.set)
+    sets, errors = _sets(texts)
     if sets:
         for key, value in sets.items():
             try:
@@ -142,6 +154,14 @@ def _set_and_duration(s, args) -> tuple:
                 s = s.with_keys(sets)
             except sc.ScenarioError as e:  # the keys are valid one by one, not together
                 errors += [f"--set: {m}" for m in e.messages]
+    return s, sets, errors
+
+
+def _set_and_duration(s, args) -> tuple:
+    """The scenario with the --set keys and --duration, and every mistake of those flags."""
+    from . import scenarios as sc
+
+    s, sets, errors = _with_sets(s, args.set)
     if args.duration is not None:
         try:
             s = s.with_overrides(duration_s=args.duration)
@@ -366,6 +386,91 @@ def cmd_view(args) -> int:
     )
 
 
+def cmd_drive(args) -> int:
+    from . import drive
+    from . import scenarios as sc
+
+    try:
+        scenario, note = drive.load(args.scenario)
+    except sc.ScenarioError as e:
+        raise UserError(*e.messages) from None
+    _require_format(args.format)
+    out = _out_dir(args.out or Path("out") / f"{scenario.name}-drive")
+    if note and not args.quiet:
+        print(f"virtmech drive: note: {note}", file=sys.stderr)
+    try:
+        r = drive.run(
+            scenario,
+            device=args.device,
+            library=args.library,
+            device_name=args.device_name,
+            duration_s=args.duration,
+            out=out,
+            fmt=args.format,
+            watchdog_ms=args.watchdog_ms,
+            figures=args.figures,
+            quiet=args.quiet,
+            view_port=args.view,
+        )
+    except drive.DeviceFault as e:
+        print(f"virtmech drive: {e}", file=sys.stderr)
+        return 1
+    st, dev = r.stats, r.info
+    if st:
+        print(
+            f"{scenario.name}: drove {dev.get('model') or 'the device'} for "
+            f"{st['elapsed_s']:.2f} s: {st['ticks']} ticks at {st['rate_hz']:.1f} Hz, "
+            f"{st['late']} late, worst tick {st['worst_tick_us']:.0f} us; wrote "
+            f"{out}/{', '.join(r.files)}"
+        )
+    print(f"virtmech drive: {r.message}", file=sys.stderr if r.exit_code else sys.stdout)
+    return r.exit_code
+
+
+def cmd_ros2(args) -> int:
+    from . import drive
+    from .ros2.runtime import require_ros
+
+    require_ros("ros2")
+    scenario, _ = drive.load(args.scenario)  # what a real device needs of the scenario
+    scenario, _, errors = _with_sets(scenario, args.set)
+    if args.duration is not None and not args.duration > 0:
+        errors.append(f"--duration {args.duration:g}: expected a number of seconds > 0")
+    if errors:
+        raise UserError(*errors)
+    from .ros2 import node
+
+    return node.run(scenario, args.ros_args, args.duration)
+
+
+def cmd_ros2_sim(args) -> int:
+    from . import scenarios as sc
+    from .ros2.runtime import require_ros
+
+    _require_sim("ros2-sim")
+    require_ros("ros2-sim")
+    s, errors = _set_and_duration(sc.load(args.scenario), args)
+    for flag, v in (("--timeout", args.timeout), ("--wait", args.wait)):
+        if not v >= 0 or (flag == "--timeout" and not v > 0):
+            errors.append(f"{flag} {v:g}: expected a number of seconds > 0")
+    if errors:
+        raise UserError(*errors)
+    out = _out_dir(args.out) if args.out else None
+    from .ros2 import sim_node
+
+    return sim_node.run(
+        s,
+        args.ros_args,
+        seed=args.seed,
+        command=args.command_topic,
+        lockstep=args.lockstep,
+        timeout_s=args.timeout,
+        wait_s=args.wait,
+        velocity=args.velocity,
+        out=out,
+    )
+
+
 def cmd_bench(argv: list[str]) -> int:
     from . import bench  # imported only when asked for
 
@@ -547,6 +652,121 @@ def _add_view(sub) -> None:
     )
 
 
+def _add_drive(sub) -> None:
+    dr = sub.add_parser(
+        "drive", help="render a scenario's mechanism on a real haptic device (docs/devices.md)"
+    )
+    dr.add_argument(
+        "scenario",
+        help="SCENARIO.toml or a shipped name: its [device], [mechanism] (or [set]) and "
+        "[controller]",
+    )
+    dr.add_argument(
+        "--device",
+        choices=("openhaptics",),
+        default="openhaptics",
+        help="the device's SDK: openhaptics (Touch, PHANTOM Omni; the default)",
+    )
+    dr.add_argument(
+        "--library",
+        metavar="PATH",
+        help="the SDK's library (default: libHD.so on the loader's path, then /opt/OpenHaptics)",
+    )
+    dr.add_argument(
+        "--device-name",
+        metavar="NAME",
+        help="the device's name in the Touch setup tool (default: the default device)",
+    )
+    dr.add_argument("--duration", type=float, help="stop after this many seconds (default: Ctrl-C)")
+    dr.add_argument("--out", help="output folder (default: out/<name>-drive)")
+    dr.add_argument("--format", choices=LOG_FORMATS, default="csv", help=FORMAT_HELP)
+    dr.add_argument(
+        "--watchdog-ms",
+        type=float,
+        default=5.0,
+        help="a tick this late zeroes the force, which then ramps in again (default: 5)",
+    )
+    dr.add_argument("--figures", action="store_true", help="also plane.png and time.png")
+    dr.add_argument(
+        "--view",
+        type=_port,
+        metavar="PORT",
+        help="the viewer follows the device at http://127.0.0.1:PORT (needs the [view] extra)",
+    )
+    dr.add_argument("--quiet", action="store_true", help="no status line")
+
+
+ROS_ARGS_HELP = (
+    "everything after --ros-args goes to ROS 2: remappings (-r joint_states:=/phantom/"
+    "joint_states), parameters (-p watchdog_s:=0.05, --params-file FILE); docs/ros2.md"
+)
+
+
+def _add_ros2(sub) -> None:
+    """`virtmech ros2`: the renderer as a ROS 2 node."""
+    r = sub.add_parser(
+        "ros2",
+        help="render a scenario's mechanism on a device served by a ROS 2 driver (docs/ros2.md)",
+        epilog=ROS_ARGS_HELP,
+    )
+    r.add_argument(
+        "scenario",
+        help="SCENARIO.toml or a shipped name: its [device], [mechanism] (or [set]) and "
+        "[controller]",
+    )
+    r.add_argument("--duration", type=float, help="stop after this many seconds (default: Ctrl-C)")
+    r.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="set a scenario key (as run)"
+    )
+
+
+def _add_ros2_sim(sub) -> None:
+    """`virtmech ros2-sim`: the simulated device as a ROS 2 driver."""
+    from .ros2.sim_node import COMMANDS as ROS_COMMANDS
+
+    r = sub.add_parser(
+        "ros2-sim",
+        help="serve a scenario's simulated device (MuJoCo, its hand) as a ROS 2 driver: "
+        "joint_states out, the rendering node's commands in (docs/ros2.md)",
+        epilog=ROS_ARGS_HELP,
+    )
+    r.add_argument("scenario", help="SCENARIO.toml or a name from `virtmech scenarios`")
+    r.add_argument(
+        "--command",
+        dest="command_topic",
+        choices=ROS_COMMANDS,
+        default="joint_command",
+        help="the topic whose commands drive the device (default: joint_command)",
+    )
+    r.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="each cycle waits for the command answering its joint state (a reproducible run "
+        "at any load); default: real time",
+    )
+    r.add_argument(
+        "--timeout",
+        type=float,
+        default=1.0,
+        help="lockstep: the longest wait for a command [s] (default: 1); then the last one holds",
+    )
+    r.add_argument(
+        "--wait",
+        type=float,
+        default=10.0,
+        help="wait this long for the command topic's publisher before starting [s] (default: 10)",
+    )
+    r.add_argument(
+        "--velocity", action="store_true", help="joint_states carry the sensed velocity too"
+    )
+    r.add_argument("--duration", type=float, help="override duration_s [s]")
+    r.add_argument("--seed", type=_seed, help="random seed, 0 to 2**63-1 (default: the scenario's)")
+    r.add_argument("--out", help="write log.csv and run.json (with the metrics) to this folder")
+    r.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="set a scenario key (as run)"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
@@ -556,7 +776,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--version", action="version", version=f"virtmech {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for add in (_add_demo, _add_run, _add_sweep, _add_quality, _add_view):
+    for add in (
+        _add_demo, _add_run, _add_sweep, _add_quality, _add_view, _add_drive, _add_ros2,
+        _add_ros2_sim,
+    ):
         add(sub)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     sub.add_parser("schema", help="print the JSON Schema of the scenario format")
@@ -572,7 +795,18 @@ COMMANDS = {
     "sweep": cmd_sweep,
     "quality": cmd_quality,
     "view": cmd_view,
+    "drive": cmd_drive,
+    "ros2": cmd_ros2,
+    "ros2-sim": cmd_ros2_sim,
 }
+
+
+def _split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
+    """A ROS 2 command's arguments and, from --ros-args on, ROS 2's own."""
+    if argv and argv[0] in ("ros2", "ros2-sim") and "--ros-args" in argv:
+        i = argv.index("--ros-args")
+        return argv[:i], argv[i:]
+    return argv, []
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -583,7 +817,9 @@ def main(argv: list[str] | None = None) -> int:
         if argv and argv[0] == "bench":
             return cmd_bench(argv[1:])
         p = build_parser()
+        argv, ros_args = _split_ros_args(argv)
         args = p.parse_args(argv)
+        args.ros_args = ros_args
         if args.command in COMMANDS:
             rc = COMMANDS[args.command](args)
         else:

@@ -31,6 +31,40 @@ std::mutex timer_mutex;
 int timer_depth = 0;
 mjfTime timer_saved = nullptr;
 
+// The model's joints and bodies, and the loop's settings, checked against a device of `dof`
+// joints.
+void check_model_and_settings(const mjModel* model, const LoopSettings& settings, int dof) {
+  const std::string n = std::to_string(dof);
+  require(model->nq == dof && model->nv == dof,
+          "model: expected one MuJoCo hinge or slide joint per device joint (nq = nv = " + n +
+              "), got nq = " + std::to_string(model->nq) + ", nv = " + std::to_string(model->nv));
+  require(model->nu == int(settings.actuated.size()),
+          "actuated: expected one device joint per MuJoCo actuator (" + std::to_string(model->nu) +
+              "), got " + std::to_string(settings.actuated.size()));
+  for (int a : settings.actuated) {
+    require(a >= 0 && a < dof, "actuated: index " + std::to_string(a) + " is not a joint of the " +
+                                  n + "-joint device");
+  }
+  require(settings.coupling_inv.rows() == dof && settings.coupling_inv.cols() == dof,
+          "coupling_inv: expected shape (" + n + ", " + n + ")");
+  require(settings.coupling_offset.size() == dof, "coupling_offset: expected shape (" + n + ",)");
+  require(settings.substeps >= 1, "substeps: expected >= 1, got " + std::to_string(settings.substeps));
+  require(settings.period_s > 0.0 && std::isfinite(settings.period_s),
+          "period_s: expected a positive number, got " + std::to_string(settings.period_s));
+  require(settings.comp_bodies.size() == settings.comp_masses.size(),
+          "comp_masses: expected one mass per body in comp_bodies");
+  for (int b : settings.comp_bodies) {
+    require(b >= 0 && b < model->nbody, "comp_bodies: " + std::to_string(b) + " is not a body");
+  }
+  require(settings.delay_cycles >= 0, "delay_cycles: expected >= 0");
+  require(settings.quantum >= 0.0, "quantum: expected >= 0");
+  require(settings.velocity_alpha > 0.0 && settings.velocity_alpha <= 1.0,
+          "velocity_alpha: expected a number in (0, 1], got " +
+              std::to_string(settings.velocity_alpha));
+  require(settings.hand_body == -1 || (settings.hand_body > 0 && settings.hand_body < model->nbody),
+          "hand_body: " + std::to_string(settings.hand_body) + " is not a body (nor -1: none)");
+}
+
 }  // namespace
 
 TimerOff::TimerOff() {
@@ -51,48 +85,43 @@ TimerOff::~TimerOff() {
 
 ServoLoop::ServoLoop(Controller& controller, mjModel* model, mjData* data,
                      LoopSettings settings, const PlanLayout& plan, const LogLayout& log)
-    : ctrl_(&controller), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+    : ctrl_(&controller),
+      device_(&controller.device()),
+      m_(model),
+      d_(data),
+      s_(std::move(settings)),
+      plan_(plan),
+      log_(log) {
   mdof_ = controller.mechanism().dof();
   init();
 }
 
 ServoLoop::ServoLoop(MechanismSet& set, mjModel* model, mjData* data, LoopSettings settings,
                      const PlanLayout& plan, const LogLayout& log)
-    : set_(&set), m_(model), d_(data), s_(std::move(settings)), plan_(plan), log_(log) {
+    : set_(&set), device_(&set.device()), m_(model), d_(data), s_(std::move(settings)),
+      plan_(plan), log_(log) {
   require(set.size() > 0, "set: expected a mechanism set with at least one member");
   for (int i = 0; i < set.size(); ++i) mdof_ = std::max(mdof_, set.member(i).mechanism().dof());
   init();
 }
 
+ServoLoop::ServoLoop(const Device& device, ExternalController& controller, mjModel* model,
+                     mjData* data, LoopSettings settings, const PlanLayout& plan,
+                     const LogLayout& log)
+    : external_(&controller), device_(&device), m_(model), d_(data), s_(std::move(settings)),
+      plan_(plan), log_(log) {
+  init();
+  // the controller's columns an external controller leaves: zero in every row
+  for (Vector6* v : {&out_.wrench, &out_.wrench_null, &out_.wrench_range, &out_.wrench_unrendered,
+                     &out_.error, &out_.error_dot, &out_.error_star, &out_.error_star_dot}) {
+    v->setZero();
+  }
+}
+
 void ServoLoop::init() {
   require(m_ != nullptr && d_ != nullptr, "model, data: expected an mjModel and an mjData");
   n_ = device().dof();
-  const std::string n = std::to_string(n_);
-  require(m_->nq == n_ && m_->nv == n_,
-          "model: expected one MuJoCo hinge or slide joint per device joint (nq = nv = " + n +
-              "), got nq = " + std::to_string(m_->nq) + ", nv = " + std::to_string(m_->nv));
-  require(m_->nu == int(s_.actuated.size()),
-          "actuated: expected one device joint per MuJoCo actuator (" + std::to_string(m_->nu) +
-              "), got " + std::to_string(s_.actuated.size()));
-  for (int a : s_.actuated) {
-    require(a >= 0 && a < n_, "actuated: index " + std::to_string(a) + " is not a joint of the " +
-                                  n + "-joint device");
-  }
-  require(s_.coupling_inv.rows() == n_ && s_.coupling_inv.cols() == n_,
-          "coupling_inv: expected shape (" + n + ", " + n + ")");
-  require(s_.coupling_offset.size() == n_, "coupling_offset: expected shape (" + n + ",)");
-  require(s_.substeps >= 1, "substeps: expected >= 1, got " + std::to_string(s_.substeps));
-  require(s_.period_s > 0.0 && std::isfinite(s_.period_s),
-          "period_s: expected a positive number, got " + std::to_string(s_.period_s));
-  require(s_.comp_bodies.size() == s_.comp_masses.size(),
-          "comp_masses: expected one mass per body in comp_bodies");
-  for (int b : s_.comp_bodies) {
-    require(b >= 0 && b < m_->nbody, "comp_bodies: " + std::to_string(b) + " is not a body");
-  }
-  require(s_.delay_cycles >= 0, "delay_cycles: expected >= 0");
-  require(s_.quantum >= 0.0, "quantum: expected >= 0");
-  require(s_.hand_body == -1 || (s_.hand_body > 0 && s_.hand_body < m_->nbody),
-          "hand_body: " + std::to_string(s_.hand_body) + " is not a body (nor -1: none)");
+  check_model_and_settings(m_, s_, n_);
   if (s_.hand_body > 0) {
     hand_mass_ = m_->body_mass[s_.hand_body];
     std::copy(m_->body_inertia + 3 * s_.hand_body, m_->body_inertia + 3 * s_.hand_body + 3,
@@ -116,37 +145,18 @@ void ServoLoop::init() {
   check_field("plan", "segment", plan_.segment, 1, P, false);
   const int L = log_.columns;
   require(L > 0, "log.columns: expected > 0");
-  const struct {
-    const char* name;
-    int col, width;
-  } fields[] = {{"t", log_.t, 1},
-                {"q", log_.q, n_},
-                {"dq", log_.dq, n_},
-                {"qm", log_.qm, n_},
-                {"dqm", log_.dqm, n_},
-                {"handle_p", log_.handle_p, 3},
-                {"stylus", log_.stylus, 3},
-                {"twist", log_.twist, 6},
-                {"wrench", log_.wrench, 6},
-                {"tau", log_.tau, n_},
-                {"tau_motor", log_.tau_motor, n_},
-                {"status", log_.status, 1},
-                {"ramp", log_.ramp, 1},
-                {"iterations", log_.iterations, 1},
-                {"iterations_star", log_.iterations_star, 1},
-                {"theta", log_.theta, mdof_},
-                {"theta_star", log_.theta_star, mdof_},
-                {"e", log_.e, 6},
-                {"e_dot", log_.e_dot, 6},
-                {"e_star", log_.e_star, 6},
-                {"e_star_dot", log_.e_star_dot, 6},
-                {"f_null", log_.f_null, 6},
-                {"f_range", log_.f_range, 6},
-                {"hand_wrench", log_.hand_wrench, 6},
-                {"anchor", log_.anchor, 3},
-                {"segment", log_.segment, 1},
-                {"member", log_.member, 1}};
-  for (const auto& f : fields) check_field("log", f.name, f.col, f.width, L, true);
+  // every field the loop writes (the table's LOOP rows) within a row, where given
+#define VM_LOG_MEMBER(field, width, names, units, origin) &LogLayout::field,
+  static constexpr int LogLayout::*kColumns[] = {VM_LOG_TABLE(VM_LOG_MEMBER)};
+#undef VM_LOG_MEMBER
+  const std::vector<LogField>& fields = log_fields();
+  for (size_t i = 0; i < fields.size(); ++i) {
+    if (!fields[i].derived) {
+      check_field("log", fields[i].field, log_.*kColumns[i], log_width(fields[i], n_, mdof_), L,
+                  true);
+    }
+  }
+
 
   Cinv_ = s_.coupling_inv;
   CinvT_ = Cinv_.transpose();
@@ -155,7 +165,8 @@ void ServoLoop::init() {
   CT_ = Cinv_.inverse().transpose();
   jacp_.assign(3 * size_t(n_), 0.0);
   ring_.assign(size_t(s_.delay_cycles + 1) * size_t(n_), 0.0);
-  for (JointVector* v : {&gs_, &tau_g_, &held_, &prev_, &dqf_, &q_, &dq_, &qm_, &cmd_,
+  velocity_ = VelocityFilter(n_, s_.period_s, s_.velocity_alpha);
+  for (JointVector* v : {&gs_, &tau_g_, &held_, &q_, &dq_, &qm_, &cmd_,
                          &q_cycle_, &dq_cycle_, &received_, &sv_, &hand_tau_}) {
     v->setZero(n_);
   }
@@ -209,8 +220,7 @@ void ServoLoop::sense(const double* noise, bool dropout) {
   std::copy(qm_.data(), qm_.data() + n_, ring_.data() + (reads_ % D) * n_);
   const long oldest = reads_ > delay ? reads_ - delay : 0;
   const Eigen::Map<const Eigen::VectorXd> received(ring_.data() + (oldest % D) * n_, n_);
-  if (reads_ > 0) dqf_ += s_.velocity_alpha * ((received - prev_) / s_.period_s - dqf_);
-  prev_ = received;
+  velocity_.update(received.data());
   received_ = received;
   ++reads_;
 }
@@ -273,13 +283,16 @@ void ServoLoop::control(double t, const double* noise, bool dropout) {
   sense(noise, dropout);
   const auto t0 = std::chrono::steady_clock::now();
   if (ctrl_) {
-    ctrl_->step(received_.data(), dqf_.data(), out_, t);
+    ctrl_->step(received_.data(), velocity_.velocity().data(), out_, t);
+  } else if (set_) {
+    set_->step(received_.data(), velocity_.velocity().data(), set_out_, t);
   } else {
-    set_->step(received_.data(), dqf_.data(), set_out_, t);
+    out_.torque.setZero(n_);
+    external_->control(t, received_.data(), velocity_.velocity().data(), out_.torque.data());
   }
   control_time_s_ +=
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!ctrl_) out_ = set_out_.cycle;
+  if (set_) out_ = set_out_.cycle;
   cmd_ = out_.torque;
   if (!s_.comp_bodies.empty()) {
     // gravity through the motors: -C^T sum_b J_com,b^T m_b g (kinematics from mj_step1)
@@ -310,7 +323,7 @@ void ServoLoop::write_row(double t, const Pose& T_h, const Vector6& tw0, const V
   put(log_.q, q_cycle_);
   put(log_.dq, dq_cycle_);
   put(log_.qm, received_);
-  put(log_.dqm, dqf_);
+  put(log_.dqm, velocity_.velocity());
   put(log_.handle_p, T_h.translation());
   put(log_.stylus, T_h.linear().col(2));
   put(log_.twist, tw0);

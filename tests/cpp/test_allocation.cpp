@@ -6,10 +6,17 @@
 // test files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
+#include <fstream>
+#include <string>
+#include <thread>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
+#include <limits>
 #include <new>
 #include <type_traits>
 #include <utility>
@@ -26,6 +33,9 @@
 #include "cycle_scenes.hpp"
 #include "heap_counter.hpp"
 #include "virtmech.h"
+#include "virtmech/drivers/driver_servo.hpp"
+#include "virtmech/drivers/openhaptics.hpp"
+#include "virtmech_driver.h"
 
 namespace {
 
@@ -330,6 +340,47 @@ TEST(Allocation, MechanismSetOfFourAllocatesAndFreesNothing) {
   EXPECT_TRUE(out.cycle.torque.allFinite());
 }
 
+TEST(Allocation, RecoveryOnALargeNurbsSurfaceAllocatesNothing) {
+  // a probe on a 60 x 60 bicubic patch (the test patch's bump and saddle over 12 cm x 9 cm,
+  // 2.3e5 closest-point samples in a deep hierarchy) under the Omni's tip, with a fault
+  // every 50 cycles: each recovery places the probe by the surface's global closest point
+  const int n = 60;
+  Eigen::MatrixX3d P(n * n, 3);
+  Eigen::MatrixXd W(n, n);
+  Eigen::Matrix3d R;
+  R << 1, 0, 0, 0, 0, 1, 0, -1, 0;  // the patch's normal along the Omni's +y
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const double x = 0.12 * i / (n - 1) - 0.06, y = 0.09 * j / (n - 1) - 0.045;
+      const Eigen::Vector3d local(
+          x, y, 0.012 * std::cos(2.0 * x / 0.06) * std::cos(y / 0.045) + 0.2 * x * y);
+      P.row(i * n + j) = (Eigen::Vector3d(0, 0, -0.12) + R * local).transpose();
+      W(i, j) = 1.0 + 0.1 * ((i + j) % 3);
+    }
+  }
+  Eigen::VectorXd k(n + 4);
+  for (int i = 0; i < n + 4; ++i) k[i] = std::clamp((i - 3.0) / (n - 3), 0.0, 1.0);
+  auto surface = std::make_shared<NurbsSurface>(P, W, k, k, 3, 3);
+  Controller c(std::make_shared<PhantomOmni>(), std::make_shared<SurfaceProbe>(surface, 0.1),
+               cycle_settings());
+  JointVector q(6), dq(6);
+  CycleOutput out;
+  int faults = 0;  // the non-finite inputs (the path also leaves the joint range at times)
+  start_heap_count();
+  for (int cycle = 0; cycle < 5000; ++cycle) {
+    joint_state(cycle, q, dq);
+    if (cycle % 50 == 25) q[0] = std::numeric_limits<double>::quiet_NaN();
+    const std::uint32_t st = c.step(q.data(), dq.data(), out, cycle * 1e-3);
+    faults += (st & status::kFaultNonFiniteInput) != 0u;
+  }
+  const HeapCount count = stop_heap_count();
+  EXPECT_EQ(count.allocations, 0);
+  EXPECT_EQ(count.frees, 0);
+  EXPECT_EQ(count.news, 0);
+  EXPECT_EQ(faults, 100);
+  EXPECT_TRUE(out.torque.allFinite());
+}
+
 TEST(Allocation, CApiStepAndDiagnosticsAllocateNothing) {
   for (vm_mechanism_type type : kCApiMechanisms) {
     CApiLoop loop(type);
@@ -387,6 +438,131 @@ TEST(Allocation, CApiShapeProbeAndSetStepAndDiagnosticsAllocateNothing) {
   vm_mechanism_set_destroy(set);
 }
 
+// --- a device driver's tick allocates and frees nothing ----------------------------
+
+namespace {
+
+// the Omni's joints wandering within their range
+void omni_state(int k, JointVector& q) {
+  const double base[6] = {0.1, 0.45, 0.25, 0.0, 0.6, 0.0};
+  for (int i = 0; i < 6; ++i) q[i] = base[i] + 0.1 * std::sin(1.3e-3 * k + i);
+}
+
+// driver ticks over the Omni's wandering joints: a late tick past the watchdog, a
+// non-finite reading, the records read every 50 ticks, a stop requested near the end
+template <typename Renderer>
+HeapCount count_driver_ticks(Renderer& renderer, int ticks) {
+  drivers::ServoSettings settings;
+  settings.record_capacity = 256;
+  drivers::DriverServo servo(renderer, settings);
+  servo.reset();
+  std::vector<drivers::TickRecord> records(256);
+  JointVector q(6);
+  double tau[kMaxDof];
+  long read = 0;
+  start_heap_count();
+  for (int k = 0; k < ticks; ++k) {
+    omni_state(k, q);
+    if (k == ticks / 3) q[2] = std::numeric_limits<double>::quiet_NaN();
+    const double t = k * 1e-3 + (k >= ticks / 2 ? 0.02 : 0.0);
+    if (k == 9 * ticks / 10) servo.request_stop();
+    servo.tick(q.data(), t, tau);
+    servo.end_tick(0, std::numeric_limits<double>::quiet_NaN());
+    if (k % 50 == 49) read += static_cast<long>(servo.read_records(records.data(), 256));
+  }
+  const HeapCount n = stop_heap_count();
+  EXPECT_EQ(read, ticks);
+  EXPECT_EQ(servo.stats().watchdog, 1u);
+  return n;
+}
+
+}  // namespace
+
+TEST(Allocation, DriverTicksAllocateAndFreeNothing) {
+  const Scene s = make_scene("OmniPlanarArm");
+  Controller c(s.device, s.mechanism, cycle_settings());
+  const HeapCount n = count_driver_ticks(c, kCycles);
+  EXPECT_EQ(n.allocations, 0);
+  EXPECT_EQ(n.frees, 0);
+  EXPECT_EQ(n.news, 0);
+  MechanismSet set = make_set();
+  const HeapCount m = count_driver_ticks(set, kCycles / 5);
+  EXPECT_EQ(m.allocations, 0);
+  EXPECT_EQ(m.frees, 0);
+}
+
+TEST(Allocation, CApiDriverTickAllocatesNothing) {
+  vm_device_desc dev;
+  vm_device_desc_init(&dev, VM_DEVICE_PHANTOM_OMNI);
+  vm_mechanism_desc mech;
+  vm_mechanism_desc_init(&mech, VM_MECHANISM_PROBE);
+  mech.point[1] = -0.02;
+  vm_settings settings;
+  vm_settings_init(&settings);
+  settings.watchdog_s = 0.003;
+  vm_controller* c = nullptr;
+  ASSERT_EQ(vm_controller_create(&dev, &mech, &settings, &c, nullptr, 0), VM_OK);
+  vm_driver* d = nullptr;
+  ASSERT_EQ(vm_driver_create(c, nullptr, &d, nullptr, 0), VM_OK);
+  vm_driver_record records[64];
+  vm_driver_stats stats;
+  JointVector q(6);
+  double tau[6];
+  start_heap_count();
+  for (int k = 0; k < kCycles; ++k) {
+    omni_state(k, q);
+    vm_driver_tick(d, q.data(), 6, k * 1e-3, tau);
+    if (k % 32 == 31) {
+      vm_driver_read_records(d, records, 64);
+      vm_driver_statistics(d, &stats);
+    }
+  }
+  vm_driver_device_error(d, 0x0302);
+  vm_driver_tick(d, q.data(), 6, kCycles * 1e-3, tau);
+  const HeapCount n = stop_heap_count();
+  EXPECT_EQ(n.allocations, 0);
+  EXPECT_EQ(n.frees, 0);
+  EXPECT_EQ(tau[0], 0.0);
+  vm_driver_statistics(d, &stats);
+  EXPECT_EQ(stats.stop, VM_DRIVER_STOP_DEVICE_ERROR);
+  vm_driver_destroy(d);
+  vm_controller_destroy(c);
+}
+
+#ifdef VM_STANDIN_HD
+TEST(Allocation, OpenHapticsTickAllocatesNothing) {
+  // the driver's tick in the stand-in HD library's scheduler thread (its HD calls included),
+  // the records read on this thread, for 0.4 s: every heap call of the process is counted
+  const std::string base = testing::TempDir() + "alloc_standin";
+  std::ofstream(base + ".cfg") << "trace " << base << ".trace\nmax_ticks 4000\n";
+  setenv("VIRTMECH_STANDIN_CONFIG", (base + ".cfg").c_str(), 1);
+  drivers::OpenHapticsSettings hd;
+  hd.library = VM_STANDIN_HD;
+  drivers::OpenHapticsDriver driver(hd);
+  const Scene s = make_scene("OmniPlanarArm");
+  Controller c(s.device, s.mechanism, cycle_settings());
+  driver.open(*s.device);
+  ASSERT_EQ(driver.calibrate(), drivers::Calibration::kOk);
+  driver.start(c);
+  std::vector<drivers::TickRecord> records(1024);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const std::uint64_t ticks0 = driver.servo()->stats().ticks;
+  start_heap_count();
+  for (int i = 0; i < 40; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    driver.servo()->read_records(records.data(), records.size());
+  }
+  const HeapCount n = stop_heap_count();
+  const std::uint64_t ticks = driver.servo()->stats().ticks - ticks0;
+  driver.stop();
+  unsetenv("VIRTMECH_STANDIN_CONFIG");
+  EXPECT_GT(ticks, 200u);
+  EXPECT_EQ(n.allocations, 0);
+  EXPECT_EQ(n.frees, 0);
+  EXPECT_EQ(n.news, 0);
+}
+#endif
+
 // --- the cycle's calls cannot throw (checked when this file compiles) ---------------
 
 TEST(Realtime, CycleCallsAreNoexcept) {
@@ -424,6 +600,16 @@ TEST(Realtime, CycleCallsAreNoexcept) {
                 "KinematicChain::forward_jacobian may throw");
   static_assert(noexcept(k->forward(x, *T)), "KinematicChain::forward may throw");
   static_assert(noexcept(k->joint(0)), "KinematicChain::joint may throw");
+  drivers::DriverServo* servo = nullptr;
+  drivers::DeviceDriver* driver = nullptr;
+  double* y = nullptr;
+  drivers::TickRecord* records = nullptr;
+  static_assert(noexcept(servo->tick(x, 0.0, y)), "DriverServo::tick may throw");
+  static_assert(noexcept(servo->end_tick(0, 0.0)), "DriverServo::end_tick may throw");
+  static_assert(noexcept(servo->device_error(0)), "DriverServo::device_error may throw");
+  static_assert(noexcept(servo->request_stop()), "DriverServo::request_stop may throw");
+  static_assert(noexcept(servo->read_records(records, 1)), "read_records may throw");
+  static_assert(noexcept(driver->tick()), "DeviceDriver::tick may throw");
   SUCCEED();
 }
 

@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import UserError
 from .log import CHUNK_S, DERIVE_TAIL_CYCLES, SimResult, log_store
 
-__all__ = ["Progress", "SimulationUnstable", "check_stable", "run"]
+__all__ = ["Progress", "SimulationUnstable", "StretchInputs", "check_stable", "run"]
 
 
 class SimulationUnstable(UserError):
@@ -138,6 +138,39 @@ def run(
     return _Run(rig, progress, sink, keep_log, chunk_s, spill_dir).go()
 
 
+class StretchInputs:
+    """A run's inputs a stretch of cycles at a time: the hand's plan (the rig's [[intent]]
+    timeline), the sensor noise and the dropouts. The noise's draws and the dropouts' (from
+    their own stream, a child of the same seed) follow one another whatever the stretches,
+    so a run does not depend on where it is split (`virtmech run`'s blocks, `virtmech
+    ros2-sim`'s cycles)."""
+
+    def __init__(self, rig):
+        self.rig = rig
+        self.n = rig.device.dof
+        self.rng = np.random.default_rng(rig.seed)
+        self.dropout_rng = np.random.default_rng(np.random.SeedSequence(rig.seed).spawn(1)[0])
+        self.intent = rig.intent()
+
+    def __call__(self, k0: int, k1: int, T_h0: np.ndarray | None):
+        """Cycles k0 .. k1 - 1: the hand's plan, sensor noise and dropouts (the random draws
+        in the stretches' order). T_h0, the handle's pose at k0, matters only where a segment
+        starts there."""
+        rows, s = k1 - k0, self.rig.sensors
+        plan = self.intent.plan(k0, k1, T_h0)
+        noise = (
+            self.rng.normal(0.0, s.noise_rad, (rows, self.n))
+            if s.noise_rad > 0.0
+            else np.zeros((rows, self.n))
+        )
+        dropout = (
+            (self.dropout_rng.random(rows) < s.dropout_probability).astype(float)
+            if s.dropout_probability > 0.0
+            else np.zeros(rows)
+        )
+        return plan, noise, dropout
+
+
 class _Run:
     """One run of a built rig: its stretches of cycles, the inputs of each (the hand's plan,
     the sensor draws), the blocks of the log and where they go."""
@@ -148,12 +181,8 @@ class _Run:
         self.T = rig.period_s
         self.n = rig.device.dof
         self.N = int(round(S["duration_s"] / self.T)) + 1
-        # the sensor noise's draws, and the dropouts' from their own stream (a child of the
-        # same seed): the draws of each stream follow one another whatever the stretches, so
-        # the log does not depend on where the run is split into stretches and blocks
-        self.rng = np.random.default_rng(rig.seed)
-        self.dropout_rng = np.random.default_rng(np.random.SeedSequence(rig.seed).spawn(1)[0])
-        self.intent = rig.intent()
+        self.inputs = StretchInputs(rig)  # the hand's plan and the sensor draws
+        self.intent = self.inputs.intent
         self.servo = rig.servo_loop()
         self.post = rig.derived_columns()
         columns = rig.columns
@@ -179,24 +208,6 @@ class _Run:
         tails = {e - DERIVE_TAIL_CYCLES for e in ends if e - DERIVE_TAIL_CYCLES > 0}
         cuts = sorted(self.starts | set(range(0, N, 1000)) | {0} | ends | tails)
         return list(zip(cuts[:-1], cuts[1:]))
-
-    def inputs(self, k0: int, k1: int, T_h0: np.ndarray | None):
-        """A stretch's hand plan, sensor noise and dropouts (the random draws in the
-        stretches' order). T_h0, the handle's pose at k0, matters only where a segment
-        starts there."""
-        rows, s = k1 - k0, self.rig.sensors
-        plan = self.intent.plan(k0, k1, T_h0)
-        noise = (
-            self.rng.normal(0.0, s.noise_rad, (rows, self.n))
-            if s.noise_rad > 0.0
-            else np.zeros((rows, self.n))
-        )
-        dropout = (
-            (self.dropout_rng.random(rows) < s.dropout_probability).astype(float)
-            if s.dropout_probability > 0.0
-            else np.zeros(rows)
-        )
-        return plan, noise, dropout
 
     def handle_pose(self) -> np.ndarray:
         """The handle's pose now (the MuJoCo state's)."""

@@ -40,11 +40,8 @@ class Replay:
     """A logged run, frame by frame: `frame(t)` at the last logged cycle at or before t."""
 
     def __init__(self, folder: str | Path):
-        import mujoco
-
         from .. import scenarios as sc
         from ..builder import build
-        from ..sim.model import HandBody, build_mjcf, compile_model, device_physics
 
         folder = Path(folder)
         self.folder = folder
@@ -65,6 +62,23 @@ class Replay:
                 f"LOG_DIR {folder}: run.json cannot be read as a run of `virtmech run` ({e})"
             ) from None
         self.info = info
+        self._drawn(S, rig)
+        self.columns, self.log = self._read(log_path)
+        self.col = {c: i for i, c in enumerate(self.columns)}
+        c = self.col
+        self.t = self.log[:, c["t"]]
+        W = self.log[:, c["fx"] : c["fx"] + 6]
+        tw = self.log[:, c["vx"] : c["vx"] + 6]
+        self.work = np.cumsum(np.einsum("ij,ij->i", W, tw)) * self.T
+        self.duration = float(self.t[-1]) if len(self.t) else 0.0
+
+    def _drawn(self, S: dict, rig) -> None:
+        """The device and the mechanism of the scenario data S (`rig`, built from it with
+        simulated=False), and the device's model for drawing (no hand, no gravity)."""
+        import mujoco
+
+        from ..sim.model import HandBody, build_mjcf, compile_model, device_physics
+
         self.scenario_data = S
         self.device, self.mech = rig.device, rig.mechanism
         self.n, self.m = rig.device.dof, rig.width
@@ -80,14 +94,6 @@ class Replay:
         self.model = compile_model(built)
         self.data = mujoco.MjData(self.model)
         self.C, self.c0 = built.coupling.C, built.coupling.c0
-        self.columns, self.log = self._read(log_path)
-        self.col = {c: i for i, c in enumerate(self.columns)}
-        c = self.col
-        self.t = self.log[:, c["t"]]
-        W = self.log[:, c["fx"] : c["fx"] + 6]
-        tw = self.log[:, c["vx"] : c["vx"] + 6]
-        self.work = np.cumsum(np.einsum("ij,ij->i", W, tw)) * self.T
-        self.duration = float(self.t[-1]) if len(self.t) else 0.0
 
     def needed(self) -> list[str]:
         names = ["t"]

@@ -72,8 +72,9 @@ class _StateHandler(BaseHTTPRequestHandler):
 
 
 class ViewServer:
-    """The viewer: `source` a scenario (a shipped name or a TOML file: live simulation) or
-    a folder written by `virtmech run` (replay). `start()` serves it on http://host:port;
+    """The viewer: `source` a scenario (a shipped name or a TOML file: live simulation), a
+    folder written by `virtmech run` (replay), or a virtmech.view.device.DeviceFeed (a
+    driven device, followed live). `start()` serves it on http://host:port;
     `state()` is what GET http://host:state_port/state answers; `stop()` ends it."""
 
     def __init__(
@@ -87,6 +88,7 @@ class ViewServer:
         record_dir: str | Path = "out/view",
         seed: int | None = None,
     ):
+        from .device import DeviceFeed
         from .replay import Replay, is_log_dir
 
         self.source = str(source)
@@ -96,7 +98,12 @@ class ViewServer:
         self.record_dir = Path(record_dir)
         self.replay: Replay | None = None
         self.pacer: Pacer | None = None
-        if is_log_dir(source):
+        if isinstance(source, DeviceFeed):  # a driven device (virtmech drive --view)
+            self.mode = "device"
+            self.replay = source
+            self.name = source.name
+            self.source = f"device: {source.name}"
+        elif is_log_dir(source):
             self.mode = "replay"
             self.replay = Replay(source)
             self.name = self.replay.name
@@ -327,7 +334,7 @@ class ViewServer:
         self._gui["status"] = gui.add_markdown("starting ...")
         if self.mode == "live":
             self._build_live_gui()
-        else:
+        elif self.mode == "replay":
             self._build_replay_gui()
         with gui.add_folder("Plots (the last seconds)"):
             ser = [{"label": "t [s]"}]
@@ -752,6 +759,8 @@ class ViewServer:
     def _tick(self, tick: int, dt: float) -> None:
         if self.mode == "live" and self.sim is not self._scene_sim:
             self._build_scene()  # a reset or another scenario
+        if self.mode == "device":
+            self.play_t = self.replay.duration  # the device's latest tick
         if self.mode == "replay" and self.playing:
             t = self.play_t + self.speed * dt
             if t >= self.replay.duration:
@@ -789,6 +798,8 @@ class ViewServer:
             lines.append(f"simulation load {100 * p.load:.0f} % of one core")
             if self.recording:
                 lines.append(f"recording to `{self.recording}`")
+        elif self.mode == "device":
+            lines.append(f"t = {f['t']:.2f} s, the device live, view {self.frame_rate:.0f} fps")
         else:
             lines.append(
                 f"t = {f['t']:.3f} / {self.replay.duration:.3f} s, "

@@ -20,9 +20,9 @@
 // mj_step1 followed by mj_step2 is mj_step, with the inputs set in between. The hand's plan
 // (anchor, gains, push), the sensor noise and the dropouts are given, one row per cycle.
 //
-// Where each quantity sits in a plan row and in a log row is not declared here: the caller
-// gives the column of each field (PlanLayout, LogLayout), from its one table of columns
-// (virtmech.sim.human.PLAN_COLUMNS and virtmech.sim.log.log_columns in Python).
+// Where each quantity sits in a plan row and in a log row is given by the caller (PlanLayout,
+// LogLayout): the plan's from virtmech.sim.human.PLAN_COLUMNS, the log's from the one table
+// of its columns (log_table.hpp; Python reads the same table).
 #pragma once
 
 #include <mujoco/mujoco.h>
@@ -30,6 +30,8 @@
 #include <cstddef>
 #include <vector>
 
+#include "virtmech/sim/log_table.hpp"
+#include "virtmech/velocity_filter.hpp"
 #include "virtmech/virtmech.hpp"
 
 namespace virtmech::sim {
@@ -45,20 +47,15 @@ struct PlanLayout {
   int force = -1, moment = -1, force_in_handle = -1, hand_attached = -1, segment = -1;
 };
 
-/// Column of each field of a log row (the first of its entries; -1: not written). n = the
-/// device's joints, m = the mechanism's. Widths: t 1; q, dq, qm, dqm, tau, tau_motor n;
-/// handle_p 3; stylus 3 (the handle's z axis); twist 6; wrench 6 (device on handle);
-/// status, ramp, iterations, iterations_star 1; theta, theta_star m; e, e_dot, e_star,
-/// e_star_dot, f_null, f_range 6; hand_wrench 6; anchor 3; segment 1.
+/// Column of each field of a log row (the first of its entries; -1: not written), one
+/// member per row of VM_LOG_TABLE (log_table.hpp: widths, names, units); the loop writes the
+/// LOOP rows. With a set, theta and theta_star are the rendered member's (NaN past its
+/// joints, all NaN with none) and member the member rendered (-1: none).
 struct LogLayout {
   int columns = -1;  //!< entries per row
-  int t = -1, q = -1, dq = -1, qm = -1, dqm = -1, handle_p = -1, stylus = -1, twist = -1,
-      wrench = -1, tau = -1, tau_motor = -1, status = -1, ramp = -1, iterations = -1,
-      iterations_star = -1, theta = -1, theta_star = -1, e = -1, e_dot = -1, e_star = -1,
-      e_star_dot = -1, f_null = -1, f_range = -1, hand_wrench = -1, anchor = -1, segment = -1;
-  /// the MechanismSet member rendered (-1: none); with a set, theta and theta_star are the
-  /// rendered member's (NaN past its joints, all NaN with none), m the largest member's
-  int member = -1;
+#define VM_LOG_MEMBER(field, width, names, units, origin) int field = -1;
+  VM_LOG_TABLE(VM_LOG_MEMBER)
+#undef VM_LOG_MEMBER
 };
 
 /// How the device sits in the MuJoCo model, and the simulated driver.
@@ -73,8 +70,19 @@ struct LoopSettings {
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  //!< for the compensation [m/s^2]
   double quantum = 0.0;             //!< encoder step [rad]; 0: none
   int delay_cycles = 0;             //!< sensor delay [cycles]
-  double velocity_alpha = 1.0;      //!< velocity low-pass: dqf += alpha (diff - dqf)
+  double velocity_alpha = 1.0;      //!< the VelocityFilter's gain, in (0, 1]
   int hand_body = -1;  //!< the hand's body (mass zeroed while released); -1: none
+};
+
+/// A controller outside the loop, called in the controller's place once per control cycle:
+/// a stand-in vendor library serving the simulated device to a real driver (tests/standin).
+/// It gets the measured joints (quantised, delayed: what the device's encoders give) and
+/// their velocity estimate, and writes the joint torques (the device's joints; the loop
+/// applies the actuated joints', with the gravity compensation).
+class ExternalController {
+ public:
+  virtual ~ExternalController() = default;
+  virtual void control(double t_s, const double* qm, const double* dqm, double* torque) = 0;
 };
 
 /// The loop. Holds the controller, model and data by reference: they must outlive it. The
@@ -91,6 +99,10 @@ class ServoLoop {
   /// columns as wide as the largest member's joints).
   ServoLoop(MechanismSet& set, mjModel* model, mjData* data, LoopSettings settings,
             const PlanLayout& plan, const LogLayout& log);
+  /// The same loop with an external controller on `device` (both must outlive the loop); the
+  /// log's controller columns (wrench, theta, e, ...) stay zero.
+  ServoLoop(const Device& device, ExternalController& controller, mjModel* model, mjData* data,
+            LoopSettings settings, const PlanLayout& plan, const LogLayout& log);
   ~ServoLoop();
   ServoLoop(const ServoLoop&) = delete;
   ServoLoop& operator=(const ServoLoop&) = delete;
@@ -111,7 +123,7 @@ class ServoLoop {
 
  private:
   void init();
-  const Device& device() const noexcept { return ctrl_ ? ctrl_->device() : set_->device(); }
+  const Device& device() const noexcept { return *device_; }
   void read_state();
   void sense(const double* noise, bool dropout);
   void control(double t, const double* noise, bool dropout);
@@ -122,8 +134,10 @@ class ServoLoop {
   void write_row(double t, const Pose& T_h, const Vector6& tw0, const Vector6& wrench0,
                  const double* plan, double* row) const;
 
-  Controller* ctrl_ = nullptr;  // one of the two
+  Controller* ctrl_ = nullptr;  // one of the three
   MechanismSet* set_ = nullptr;
+  ExternalController* external_ = nullptr;
+  const Device* device_ = nullptr;
   MechanismSetOutput set_out_;
   mjModel* m_;
   mjData* d_;
@@ -134,8 +148,9 @@ class ServoLoop {
   JointMatrix Cinv_, CinvT_, CT_;
   JointVector c0_;
   std::vector<double> jacp_, ring_;
-  JointVector gs_, tau_g_, held_, prev_, dqf_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_,
-      received_, sv_, hand_tau_;
+  JointVector gs_, tau_g_, held_, q_, dq_, qm_, cmd_, q_cycle_, dq_cycle_, received_, sv_,
+      hand_tau_;
+  VelocityFilter velocity_;  // the estimate from the received positions (dqm)
   long reads_ = 0;
   double control_time_s_ = 0.0;
   bool attached_ = true;

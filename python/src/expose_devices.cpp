@@ -1,0 +1,103 @@
+// Devices (include/virtmech/device.hpp). The Omni's constructor and parameters are its
+// kind's (src/kinds/phantom_omni.cpp); a serial-chain device and the Planar3R take a chain
+// and poses as C++ does.
+#include "expose.hpp"
+
+namespace vmpy {
+
+using namespace nb::literals;
+
+template <class T>
+void def_kinematics(nb::class_<T>& cls);  // expose_mechanisms.cpp
+
+void expose_devices(nb::module_& m) {
+  nb::class_<Device> dev(m, "DeviceBase", "A haptic device (interface): kinematics, actuation and limits.");
+  def_kinematics(dev);
+  dev.def_prop_ro("name", &Device::name)
+      .def_prop_ro("actuated", [](const Device& d) {
+            std::vector<bool> a;
+            for (int i = 0; i < d.dof(); ++i) a.push_back(d.actuated(i));
+            return nb::module_::import_("numpy").attr("array")(a);
+          }, "Actuation mask (dof,) of bool.")
+      .def_prop_ro("torque_limit", [](const Device& d) { return Eigen::VectorXd(d.torque_limit()); },
+                   "Joint torque limits (dof,) [N·m or N]; 0 for passive joints.")
+      .def_prop_ro("max_force", &Device::max_force, "[N]")
+      .def_prop_ro("max_torque", &Device::max_torque, "[N·m]")
+      .def_prop_ro("max_velocity", [](const Device& d) { return Eigen::VectorXd(d.max_velocity()); },
+                   "Fastest plausible joint speeds (dof,) [rad/s or m/s]: a faster dq is a "
+                   "fault (beyond the controller's velocity margin).")
+      .def_prop_ro("stiffness", &Device::stiffness, "Default translational Kp [N/m].")
+      .def_prop_ro("damping", &Device::damping, "Default translational Kv [N·s/m].")
+      .def("to_dict", [](const Device& self) { return to_python(describe(self)); },
+           "The device's description ('type' first) as a JSON-ready dict (its kind's).");
+
+  nb::class_<SerialDevice, Device>(
+      m, "Device",
+      "A serial-chain device (C++ SerialDevice) with any actuation mask; every device shares "
+      "DeviceBase.")
+      .def("__init__", [](SerialDevice* self, std::vector<Joint> joints, std::vector<bool> actuated,
+                          nb::handle handle, nb::handle base, nb::handle torque_limit,
+                          double max_force, double max_torque, double stiffness, double damping,
+                          const std::string& name, nb::handle coupling, nb::handle coupling_offset) {
+            const long n = static_cast<long>(joints.size());
+            DeviceLimits L;
+            L.actuated = actuated;
+            if (!torque_limit.is_none()) {
+              const Eigen::VectorXd t = vector_arg("torque_limit", torque_limit, n);
+              L.torque_limit.assign(t.data(), t.data() + n);
+            }
+            L.max_force = max_force;
+            L.max_torque = max_torque;
+            L.stiffness = stiffness;
+            L.damping = damping;
+            const KinematicChain chain(pose_arg("base", base), joints, pose_arg("handle", handle));
+            if (coupling.is_none() && coupling_offset.is_none()) {
+              new (self) SerialDevice(name, chain, L);
+              return;
+            }
+            const JointMatrix C = coupling.is_none() ? JointMatrix(JointMatrix::Identity(n, n))
+                                                     : JointMatrix(matrix_arg("coupling", coupling, n, n));
+            const JointVector c0 = coupling_offset.is_none()
+                                       ? JointVector(JointVector::Zero(n))
+                                       : JointVector(vector_arg("coupling_offset", coupling_offset, n));
+            new (self) SerialDevice(name, chain, L, C, c0);
+          }, "joints"_a, "actuated"_a, "handle"_a = nb::none(), "base"_a = nb::none(),
+          "torque_limit"_a = nb::none(), "max_force"_a = kInf, "max_torque"_a = kInf,
+          "stiffness"_a = DeviceLimits().stiffness, "damping"_a = DeviceLimits().damping,
+          "name"_a = "SerialDevice", "coupling"_a = nb::none(), "coupling_offset"_a = nb::none(),
+          "A serial-chain device with any actuation mask. joints: sequence of Joint; actuated: one "
+          "bool per joint; torque_limit (dof,) [N·m or N]; max_force [N]; max_torque [N·m]; "
+          "stiffness [N/m] and damping [N·s/m]: the default translational gains; coupling C (dof, "
+          "dof) and coupling_offset c0 (dof,): the device's joints q map to the chain's as s = C q "
+          "+ c0 (default: the chain's own).")
+      .def_prop_ro("joints", [](const SerialDevice& d) { return d.chain().joints(); },
+                   "The joints of the underlying chain (in chain coordinates).")
+      .def_prop_ro("base", [](const SerialDevice& d) { return Eigen::Matrix4d(d.chain().base().matrix()); },
+                   "The chain's base pose (4, 4): the first joint's frame is base @ joints[0].origin.")
+      .def_prop_ro("handle", [](const SerialDevice& d) { return Eigen::Matrix4d(d.chain().handle().matrix()); },
+                   "The handle frame (4, 4) in the last joint's frame.")
+      .def_prop_ro("coupling", [](const SerialDevice& d) { return Eigen::MatrixXd(d.coupling()); },
+                   "C (dof, dof) of the joint map s = C q + c0 from device to chain coordinates.")
+      .def_prop_ro("coupling_offset", [](const SerialDevice& d) { return Eigen::VectorXd(d.coupling_offset()); },
+                   "c0 (dof,) of the joint map s = C q + c0.");
+
+  const DeviceKind& omni_kind = *registry().device("PhantomOmni");
+  nb::class_<PhantomOmni, SerialDevice> omni(m, "PhantomOmni", omni_kind.doc.c_str());
+  def_kind<PhantomOmni>(omni, omni_kind.params, "PhantomOmni", [](Params p) {
+    p.set("type", "PhantomOmni");
+    return make_device(p, "");
+  });
+
+  nb::class_<Planar3R, SerialDevice>(m, "Planar3R", registry().device("Planar3R")->doc.c_str())
+      .def("__init__", [](Planar3R* self, double link1, double link2, nb::handle base,
+                          double torque_limit, double max_force) {
+            new (self) Planar3R(link1, link2, pose_arg("base", base), torque_limit, max_force);
+          }, "link1"_a = Planar3RDefaults::kLink, "link2"_a = Planar3RDefaults::kLink,
+          "base"_a = nb::none(), "torque_limit"_a = Planar3RDefaults::kTorqueLimit,
+          "max_force"_a = Planar3RDefaults::kMaxForce,
+          "link1, link2 [m]; base (4, 4); torque_limit [N·m]; max_force [N].")
+      .def_prop_ro("link1", &Planar3R::link1)
+      .def_prop_ro("link2", &Planar3R::link2);
+}
+
+}  // namespace vmpy
