@@ -324,9 +324,11 @@ std::uint32_t range_space_term(const ControllerModel& M, const Mechanism& mech,
   locked_rate(M, mech, p, M.w_e_star_effective, M.w_e_star_inverse, d.v_R, true, d.rate_star,
               d.rate_partial, out.error_star_dot);
   const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
-  out.wrench_range = P->range(F);
+  // (with the soft rank: a direction the null-space term renders near a singular pose is
+  // not rendered here again)
+  out.wrench_range = P->soft_range(F);
   if (M.passivity != Passivity::kOff) {
-    d.passivity.range_spring = P->range(M.kp.cwiseProduct(out.error_star));
+    d.passivity.range_spring = P->soft_range(M.kp.cwiseProduct(out.error_star));
   }
   return let_go(mech, p, M.w_a, out.wrench_range);
 }

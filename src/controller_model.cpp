@@ -119,6 +119,7 @@ void resolve_cycle(const Device& device, const ControllerSettings& s, Controller
   m.track_initial.max_iterations = s.max_iterations_initial;
   m.passivity = s.passivity;
   m.passivity_max_energy = s.passivity_max_energy_j;
+  m.passivity_start_energy = s.passivity_start_energy_j;
   m.passivity_fade = s.passivity_fade_j;
   m.passivity_budget = s.passivity_budget_j;
   m.passivity_fade_step = std::min(1.0, s.period_s / s.passivity_fade_time_s);
@@ -139,7 +140,9 @@ void resolve_range(const Device& device, const ControllerSettings& s, Controller
     m.q_max[i] = device.upper()[i] + margin;
     m.dq_max[i] =
         device.max_velocity()[i] + (revolute ? s.velocity_margin_rad_s : s.velocity_margin_m_s);
-    m.passivity_play[i] = revolute ? s.passivity_resolution_rad : s.passivity_resolution_m;
+    // half a count: the observer's displacement can sit between two counts a joint flips
+    // between, within the play of both (docs/theory.md, 8)
+    m.passivity_play[i] = 0.5 * (revolute ? s.passivity_resolution_rad : s.passivity_resolution_m);
   }
 }
 
@@ -178,6 +181,7 @@ Params describe(const ControllerModel& m) {
       .set("max_iterations", m.track.max_iterations)
       .set("max_iterations_initial", m.track_initial.max_iterations)
       .set("passivity", name_of(m.passivity))
+      .set("passivity_start_energy_j", m.passivity_start_energy)
       .set("passivity_max_energy_j", m.passivity_max_energy)
       .set("passivity_fade_j", m.passivity_fade)
       .set("passivity_budget_j", m.passivity_budget)

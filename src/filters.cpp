@@ -551,6 +551,14 @@ Vector6 WeightedProjector::null(const Vector6& x) const noexcept {
   return x - (rotated_ ? Vector6(V_ * p) : p);
 }
 
+Vector6 WeightedProjector::soft_range(const Vector6& x) const noexcept {
+  check_soft();
+  if (!filtered_ || !finite_) return range(x);
+  const Vector6 xr = rotated_ ? Vector6(V_.transpose() * x) : x;
+  const Vector6 p = filtered_range(xr);
+  return rotated_ ? Vector6(V_ * p) : p;
+}
+
 void WeightedProjector::fit(const Vector6& v, JointVector& theta_dot) const noexcept {
   factorise();
   const int r = rank_, m = m_;

@@ -26,6 +26,7 @@ double saturated_spring(const Vector6& e, const Vector6& f, double force_limit,
 void restart_passivity(PassivityState& s, bool springs) noexcept {
   s.cycles = 0;
   s.energy = 0.0;
+  s.pending = 0.0;
   // (after a fault the range term's factor stays where it was: the ramp-in brings the force
   // back, and a factor the tank had taken down comes back only as the tank refills)
   if (springs) {
@@ -47,7 +48,7 @@ double median(double a, double b, double c) noexcept {
 // Returns that work [J] (0 until two intervals have passed since the restart).
 double observed_work(const ControllerModel& M, int n, PassivityState& s, const double* q,
                      const double* dq) noexcept {
-  double work = 0.0;
+  double work = 0.0, pending = 0.0;
   if (s.cycles == 0) {
     s.q_before.resize(n);
     s.q_last.resize(n);
@@ -60,6 +61,7 @@ double observed_work(const ControllerModel& M, int n, PassivityState& s, const d
       const double h = M.passivity_play[i];
       const double p = std::clamp(s.played[i] + s.dq_last[i] * M.period_s, settled - h, settled + h);
       work += s.tau_before[i] * (p - s.played[i]);
+      pending += s.tau_last[i] * (settled - p);
       s.played[i] = p;
     }
   }
@@ -70,6 +72,7 @@ double observed_work(const ControllerModel& M, int n, PassivityState& s, const d
     }
   }
   for (int i = 0; i < n; ++i) s.dq_last[i] = dq[i];
+  s.pending = std::max(0.0, pending);
   return work;
 }
 
@@ -96,14 +99,14 @@ void passivity(const ControllerModel& M, const Device& dev, PassivityState& s, c
   out.stored_energy = stored;
   const bool restart = s.cycles == 0;
   const double work = observed_work(M, n, s, q, dq);
-  // the start hands the rendering what its springs hold, at most the reserve; a restart
+  // the start hands the rendering what its springs hold, at most passivity_start_energy_j; a
+  // restart
   // after a fault or a watchdog trip (or of a set's member as it engages) starts empty: the
   // spring was stretched meanwhile (by a stylus falling past its joint range, by 20 N);
   // afterwards the level loses the motors' work and holds at most the springs' energy and
-  // the reserve: energy
-  // absorbed long ago (by damping, say) beyond it does not later power motion the user did
-  // not ask for. No floor: a deficit is paid back before the range term comes back.
-  s.energy = restart ? (s.start_with_springs ? std::min(stored, M.passivity_max_energy) : 0.0)
+  // the reserve (passivity_max_energy_j, default 0): energy absorbed long ago (by damping,
+  // say) beyond it does not later power motion the user did not ask for. No floor: a deficit is paid back before the range term comes back.
+  s.energy = restart ? (s.start_with_springs ? std::min(stored, M.passivity_start_energy) : 0.0)
                      : s.energy - work;
   s.energy = std::min(s.energy, stored + M.passivity_max_energy);
   out.energy = s.energy;
@@ -121,7 +124,7 @@ void passivity(const ControllerModel& M, const Device& dev, PassivityState& s, c
   const double power = std::max(0.0, s.factor * out.wrench_range.dot(twist));
   const double ahead = power * M.period_s * std::ceil(s.rendered / step);
   const double aim = std::clamp(
-      1.0 + (s.energy - ahead + M.passivity_budget) / M.passivity_fade, 0.0, 1.0);
+      1.0 + (s.energy - s.pending - ahead + M.passivity_budget) / M.passivity_fade, 0.0, 1.0);
   // the rendered share follows the range term's while the aim is 1 and it did; otherwise it
   // moves toward aim times the range term's share by at most one step (of the wrench
   // limits) a cycle: the force the factor takes away or gives back never steps, and a range

@@ -13,7 +13,7 @@ double saturated_spring(const Vector6& e, const Vector6& f, double force_limit,
 
 /// The tank restarts at the next cycle, its observer's history forgotten: at the start
 /// (`springs`) its level then starts at what the springs hold, at most
-/// passivity_max_energy_j; after a fault, a watchdog trip or a cycle whose torque was not
+/// passivity_start_energy_j; after a fault, a watchdog trip or a cycle whose torque was not
 /// applied, at 0.
 void restart_passivity(PassivityState& s, bool springs) noexcept;
 

@@ -103,7 +103,8 @@ struct ControllerModel {
   JointVector dq_max;                //!< plausible |dq|: the device's speeds plus the margin
   Passivity passivity = Passivity::kEnergyTank;
   double passivity_max_energy = 0.001;  //!< [J]
-  double passivity_fade = 5e-5;         //!< [J]
+  double passivity_start_energy = 0.001;  //!< [J]
+  double passivity_fade = 1e-6;         //!< [J]
   double passivity_budget = 0.0;        //!< [J]
   double passivity_fade_step = 0.02;    //!< largest change of the range term's factor a cycle
   JointVector passivity_play;           //!< the observer's play per joint [rad or m]
@@ -130,7 +131,7 @@ struct CycleOutput {
   double ramp = 0.0;              //!< ramp-in factor applied [0, 1]
   double limit_scale = 1.0;       //!< factor applied by force and torque limits (0, 1]
   /// Energy tank: its level, the energy the rendering has absorbed: at the start the
-  /// springs' energy up to passivity_max_energy_j (after a fault or a watchdog trip 0),
+  /// springs' energy up to passivity_start_energy_j (after a fault or a watchdog trip 0),
   /// minus the motors' work since as the observer books it (two cycles late), held at most
   /// at the springs' energy plus passivity_max_energy_j [J]; 0 with passivity off
   double energy = 0.0;

@@ -57,6 +57,10 @@ class WeightedProjector {
   /// N(W) x = x - P_phi(W) x (eq. 9), P_phi with the soft rank (see the class comment):
   /// where every singular value of A lies above the soft rank's band, x - range(x).
   Vector6 null(const Vector6& x) const noexcept;
+  /// P_phi(W) x = x - null(x), the range with the soft rank: where every singular value of A
+  /// lies above the soft rank's band, range(x) exactly. A force split as null(x) plus
+  /// soft_range(x) renders each direction once, however near a singular pose.
+  Vector6 soft_range(const Vector6& x) const noexcept;
   /// The weighted minimum-norm least-squares fit (J^T W J)^+ J^T W v (m entries), e.g. the
   /// placement's joint rate for a handle twist v.
   void fit(const Vector6& v, JointVector& theta_dot) const noexcept;

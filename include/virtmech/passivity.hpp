@@ -20,6 +20,10 @@ namespace virtmech {
 /// count, so that the energy a zero-order-hold spring makes is seen).
 struct PassivityState {
   double energy = 0.0;  //!< the tank's level E [J]
+  /// The work the held torque does over the displacement the observer's play has not
+  /// booked yet, tau . (q~ - p), where it is motor output (else 0) [J]: the factor's aim
+  /// counts it as done.
+  double pending = 0.0;
   /// The range term's rendered share of the wrench limits the last cycle (its force over
   /// max_force, or its moment over max_torque, at most 1).
   double rendered = 1.0;
@@ -32,7 +36,7 @@ struct PassivityState {
   /// Cycles observed since the tank (re)started; 0: the next cycle restarts it.
   long cycles = 0;
   /// The restart is the start: the level starts at the springs' energy, at most
-  /// passivity_max_energy_j (after a fault or a watchdog trip, at 0).
+  /// passivity_start_energy_j (after a fault or a watchdog trip, at 0).
   bool start_with_springs = true;
   JointVector q_before;    //!< q two cycles back (the median's first reading)
   JointVector q_last;      //!< q one cycle back

@@ -84,9 +84,12 @@
        "energy_tank: eq. 26's range term only as long as the user has put in the energy it "     \
        "gives, faded in and out continuously; off: the laws as written (the paper's "            \
        "behaviour)")                                                                             \
+  REAL(passivity_start_energy_j, 0.001, 0.0, VM_INF, VM_RANGE_INF_ALLOWED, "J",                  \
+       "the most of what the law's springs hold at the start that the tank takes as its level "  \
+       "(a tip that starts above its plane may be pulled down; inf: all of it)")                 \
   REAL(passivity_max_energy_j, 0.001, 0.0, VM_INF, VM_RANGE_INF_ALLOWED, "J",                    \
        "the most energy the tank holds beyond what the law's springs store (inf: no cap)")       \
-  REAL(passivity_fade_j, 5e-5, 0.0, 1000.0, VM_RANGE_ABOVE_MIN, "J",                             \
+  REAL(passivity_fade_j, 1e-6, 0.0, 1000.0, VM_RANGE_ABOVE_MIN, "J",                             \
        "the range term's factor aims at 1 while the tank is at least -passivity_budget_j and "   \
        "falls linearly to 0 as it goes on down by this much")                                    \
   REAL(passivity_budget_j, 0.0, 0.0, 1000.0, VM_RANGE_CLOSED, "J",                               \
@@ -100,8 +103,8 @@
   REAL(passivity_resolution_rad, (2.0 * 3.14159265358979323846 / 15000.0), 0.0, 0.1,             \
        VM_RANGE_CLOSED, "rad",                                                                   \
        "a revolute joint's position resolution, one encoder count: the passivity observer's "    \
-       "displacement is held within it of the reading (default: the simulated Omni's); 0: the "  \
-       "readings as they are")                                                                   \
+       "displacement is held within half of it of the reading (default: the simulated Omni's); " \
+       "0: the readings as they are")                                                            \
   REAL(passivity_resolution_m, 1e-5, 0.0, 0.01, VM_RANGE_CLOSED, "m",                            \
        "a prismatic joint's position resolution (as passivity_resolution_rad)")
 

@@ -28,7 +28,8 @@ def motion(name: str, **settings):
 
 def reference_tank(c: vm.Controller) -> Tank:
     m = c.model
-    return Tank(m["passivity_play"], m["period_s"], m["passivity_max_energy_j"])
+    return Tank(m["passivity_play"], m["period_s"], m["passivity_max_energy_j"],
+                start_energy=m["passivity_start_energy_j"])
 
 
 def saturated(e, f, force_limit, moment_limit) -> float:
@@ -93,12 +94,15 @@ def test_the_range_terms_factor_moves_toward_its_aim_by_at_most_a_step():
     c, q, dq = motion(name, passivity_max_energy_j=0.0, kv=np.zeros(6))
     m = c.model
     factor = Factor(m)
+    tank = reference_tank(c)  # (for the play's pending work)
     held, full, moving = 0, 0, 0
     last_force = None
     for k in range(N):
         out = c.step(q[k], dq[k])
         twist = c.device.jacobian(q[k]) @ dq[k]
-        scale, held_back = factor.cycle(out.energy, out.wrench_range, twist)
+        tank.cycle(q[k], dq[k], out.stored_energy)
+        scale, held_back = factor.cycle(out.energy, out.wrench_range, twist, tank.pending)
+        tank.hold(out.torque)
         assert out.passivity_scale == pytest.approx(scale, abs=1e-12), k
         np.testing.assert_allclose(out.wrench_passivity, held_back, atol=1e-12)
         assert bool(out.status & vm.status.PASSIVITY) == (scale < 1.0)
@@ -222,5 +226,5 @@ def test_settings_are_checked_and_reported():
     assert m["passivity_budget_j"] == 0.0
     fade_time = vm.CONTROLLER_DEFAULTS["passivity_fade_time_s"]
     assert m["passivity_fade_step"] == pytest.approx(1e-3 / fade_time)
-    np.testing.assert_allclose(m["passivity_play"], 2 * np.pi / 15000)
+    np.testing.assert_allclose(m["passivity_play"], np.pi / 15000)  # half a count
     np.testing.assert_allclose(m["dq_max"], dev.max_velocity + 5.0)

@@ -2,16 +2,17 @@
 NumPy, for the tests to replay a controller's cycles against:
 
     q~_k = median(q_{k-1}, q_k, q_{k+1})
-    p_k  = clamp(p_{k-1} + dq_k T, q~_k - h, q~_k + h)
+    p_k  = clamp(p_{k-1} + dq_k T, q~_k - h, q~_k + h)     (h: half an encoder count)
     W_k  = tau_{k-1} . (p_k - p_{k-1})             booked at cycle k + 1
-    E_0  = min(V_0, E_max) at the start, 0 after a fault;  E_{k+1} = min(E_k - W_k, V_{k+1} + E_max)
+    R_k  = max(0, tau_k . (q~_k - p_k))           the play's pending motor work
+    E_0  = min(V_0, E_start) at the start, 0 after a fault;  E_{k+1} = min(E_k - W_k, V_{k+1} + E_max)
 
 (the first interval booked is [0, 1], at cycle 2; at a restart q_{-1} = q_0, p_0 = q_0),
 and the range term's factor: its share of the wrench limits r_k follows the range term's own
 share l_k = min(1, |f_r| / F_max, |m_r| / M_max) while the aim is 1, else moves toward
 a_k l_k by at most Delta = T / t_fade a cycle (never above l_k), with
 
-    a_k = clamp(1 + (E_k - P_k T ceil(r_{k-1} / Delta) + B) / E_fade, 0, 1),
+    a_k = clamp(1 + (E_k - R_k - P_k T ceil(r_{k-1} / Delta) + B) / E_fade, 0, 1),
     P_k = max(0, s_{k-1} f_r . v_R)         (the range term's power, looked ahead)
 
 and the factor on the range term is r_k / (its share before the limit).
@@ -28,30 +29,35 @@ class Tank:
     """One run of the tank from a restart: `cycle(q, dq, stored)` before the cycle's torque
     is known returns the level the controller reports; `hold(tau)` after it."""
 
-    def __init__(self, play, period_s: float, max_energy: float, springs: bool = True):
+    def __init__(self, play, period_s: float, max_energy: float, springs: bool = True,
+                 start_energy: float = 0.001):
         self.h = np.asarray(play, dtype=float)
         self.T = period_s
         self.e_max = max_energy
+        self.e_start = start_energy
         self.springs = springs  # the start (True) or a restart after a fault (False)
         self.cycles = 0
         self.level = 0.0
         self.capped = False  # the cap lowered the level this cycle
+        self.pending = 0.0  # R_k
 
     def cycle(self, q, dq, stored: float) -> float:
         q, dq = np.asarray(q, dtype=float), np.asarray(dq, dtype=float)
         work = 0.0
+        self.pending = 0.0
         if self.cycles == 0:
             self.q_before = self.q_last = self.p = q.copy()
         elif self.cycles >= 2:
             settled = np.median(np.stack([self.q_before, self.q_last, q]), axis=0)
             p = np.clip(self.p + self.dq_last * self.T, settled - self.h, settled + self.h)
             work = float(self.tau_before @ (p - self.p))
+            self.pending = max(0.0, float(self.tau_last @ (settled - p)))
             self.p = p
         if self.cycles > 0:
             self.q_before, self.q_last = self.q_last, q.copy()
         self.dq_last = dq.copy()
         if self.cycles == 0:
-            self.level = min(stored, self.e_max) if self.springs else 0.0
+            self.level = min(stored, self.e_start) if self.springs else 0.0
         else:
             self.level -= work
         self.capped = self.level > stored + self.e_max
@@ -65,8 +71,8 @@ class Tank:
 
 
 class Factor:
-    """The range term's factor from the start: `cycle(level, wrench_range, twist)` returns
-    (passivity_scale, wrench_passivity) as the controller reports them."""
+    """The range term's factor from the start: `cycle(level, wrench_range, twist, pending)`
+    returns (passivity_scale, wrench_passivity) as the controller reports them."""
 
     def __init__(self, model: dict):
         self.F, self.M = model["max_force"], model["max_torque"]
@@ -75,14 +81,14 @@ class Factor:
         self.T = model["period_s"]
         self.rendered, self.factor, self.following = 1.0, 1.0, True
 
-    def cycle(self, level: float, wrench_range, twist):
+    def cycle(self, level: float, wrench_range, twist, pending: float = 0.0):
         w = np.asarray(wrench_range, dtype=float)
         f, m = np.linalg.norm(w[:3]), np.linalg.norm(w[3:])
         share = max(f / self.F if f > 0 else 0.0, m / self.M if m > 0 else 0.0)
         limited = min(share, 1.0)
         power = max(0.0, self.factor * float(w @ np.asarray(twist, dtype=float)))
         ahead = power * self.T * math.ceil(self.rendered / self.step)
-        aim = min(max(1.0 + (level - ahead + self.budget) / self.fade, 0.0), 1.0)
+        aim = min(max(1.0 + (level - pending - ahead + self.budget) / self.fade, 0.0), 1.0)
         if self.following and aim >= 1.0:
             self.rendered = limited
         else:
