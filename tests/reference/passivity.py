@@ -5,7 +5,8 @@ NumPy, for the tests to replay a controller's cycles against:
     p_k  = clamp(p_{k-1} + dq_k T, q~_k - h, q~_k + h)     (h: half an encoder count)
     W_k  = tau_{k-1} . (p_k - p_{k-1})             booked at cycle k + 1
     R_k  = max(0, tau_k . (q~_k - p_k))           the play's pending motor work
-    E_0  = min(V_0, E_start) at the start, 0 after a fault;  E_{k+1} = min(E_k - W_k, V_{k+1} + E_max)
+    E_0  = min(V_0, E_start) at the start, 0 after a fault
+    E_{k+1} = min(E_k - W_k, V_{k+1} + E_max)
 
 (the first interval booked is [0, 1], at cycle 2; at a restart q_{-1} = q_0, p_0 = q_0),
 and the range term's factor: its share of the wrench limits r_k follows the range term's own
