@@ -161,35 +161,26 @@ class NurbsCurve final : public Curve {
 };
 
 namespace detail {
-/// An axis-aligned box in single precision, rounded outward from the double values it holds
-/// (lo[c] <= every value's coordinate c <= hi[c]): half a double box's memory.
-struct FloatBox {
-  float lo[3] = {0.0f, 0.0f, 0.0f}, hi[3] = {0.0f, 0.0f, 0.0f};
-};
-
 /// Vectors alpha axis + rest with alpha in [alpha_lo, alpha_hi] and rest in a box: a bound
 /// on vectors of about one direction whose length varies (a box alone would spread a
-/// length's change over every coordinate a slanted axis has). Single precision, the
-/// interval and the box rounded outward.
+/// length's change over every coordinate a slanted axis has).
 struct VectorBound {
-  float axis[3] = {0.0f, 0.0f, 0.0f};
-  float alpha_lo = 0.0f, alpha_hi = 0.0f;
-  FloatBox rest;
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+  double alpha_lo = 0.0, alpha_hi = 0.0;
+  Eigen::AlignedBox3d rest;
 };
 
 /// A block of sample cells [i0, i1) x [j0, j1) (cell (i, j) between samples (i, j) and
 /// (i + 1, j + 1)) in NurbsSurface::closest_point's hierarchy, with bounds on what the
-/// search reads there: the samples [i0 - 1, i1 + 1] x [j0 - 1, j1 + 1] (those in range);
-/// the cells' bounding spheres, and those with the samples (`near`); the steps between
-/// neighbouring samples along u that end in rows [i0, i1 + 1] of columns [j0, j1], and
-/// along v likewise; the first derivatives S_u (both sides) and S_v (both sides) at the
-/// cells' corners. In the order the walk reads them (272 bytes).
+/// search reads there: the cells' bounding spheres; the samples [i0 - 1, i1 + 1] x
+/// [j0 - 1, j1 + 1] (those in range); the steps between neighbouring samples along u that
+/// end in rows [i0, i1 + 1] of columns [j0, j1], and along v likewise; the first
+/// derivatives S_u (both sides) and S_v (both sides) at the cells' corners.
 struct NurbsCellBlock {
-  FloatBox near, samples;
-  VectorBound step_u, su, step_v, sv;
+  Eigen::AlignedBox3d spheres, samples;
+  VectorBound step_u, step_v, su, sv;
   int i0 = 0, i1 = 0, j0 = 0, j1 = 0;
   int first_child = -1, children = 0;  ///< the children follow one another
-  FloatBox spheres;
 };
 }  // namespace detail
 

@@ -9,12 +9,9 @@
 // has a change of sign (the proof by test: a strictly smaller neighbour in u, by the
 // interval of (x_a - x_(a-1)) . (x_a + x_(a-1) - 2 p) over the block's boxes, with a margin
 // for the rounding of the distances compared). Both tests keep what a scan of every sample
-// and every cell finds, so the result is the scan's, bit for bit. The bounds are kept in
-// single precision rounded outward (a float box holds the double values it bounds), which
-// halves the memory a walk reads; the tests compute in double from them.
+// and every cell finds, so the result is the scan's, bit for bit.
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -32,43 +29,6 @@ constexpr double kRounding = 1e-12;
 
 using Box = Eigen::AlignedBox3d;
 using CellBlock = detail::NurbsCellBlock;
-using detail::FloatBox;
-
-// x rounded to a float no larger (down) / no smaller (up) than it
-float round_down(double x) noexcept {
-  const float f = static_cast<float>(x);
-  return static_cast<double>(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
-}
-float round_up(double x) noexcept {
-  const float f = static_cast<float>(x);
-  return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
-}
-
-// the float box holding the double box b (b empty: an empty float box, lo > hi)
-FloatBox outward(const Box& b) noexcept {
-  FloatBox f;
-  for (int c = 0; c < 3; ++c) {
-    f.lo[c] = round_down(b.min()[c]);
-    f.hi[c] = round_up(b.max()[c]);
-  }
-  return f;
-}
-
-// the float box as a double box (exactly)
-Box widen(const FloatBox& f) noexcept {
-  return Box(Eigen::Vector3d(f.lo[0], f.lo[1], f.lo[2]), Eigen::Vector3d(f.hi[0], f.hi[1], f.hi[2]));
-}
-
-// the squared distance from p of a point of the float box, at least (0 inside)
-double exterior_distance2(const FloatBox& f, const Eigen::Vector3d& p) noexcept {
-  double d2 = 0.0;
-  for (int c = 0; c < 3; ++c) {
-    const double lo = f.lo[c], hi = f.hi[c];
-    const double d = p[c] < lo ? lo - p[c] : (p[c] > hi ? p[c] - hi : 0.0);
-    d2 += d * d;
-  }
-  return d2;
-}
 
 // The interval of a . w over a in a bound, w = factor (x - shift) with x in X, and the sum
 // of the largest |a_c| |w_c| (the scale of its rounding).
@@ -97,18 +57,17 @@ Interval dot_interval(const detail::VectorBound& A, const Box& X, const Eigen::V
   double lo = 0.0, hi = 0.0, scale = 0.0;  // axis . w
   for (int c = 0; c < 3; ++c) {
     const double w0 = factor * (X.min()[c] - shift[c]), w1 = factor * (X.max()[c] - shift[c]);
-    const double a = A.axis[c];
-    const double t0 = a * w0, t1 = a * w1;
+    const double t0 = A.axis[c] * w0, t1 = A.axis[c] * w1;
     lo += std::min(t0, t1);
     hi += std::max(t0, t1);
-    scale += std::abs(a) * std::max(std::abs(w0), std::abs(w1));
+    scale += std::abs(A.axis[c]) * std::max(std::abs(w0), std::abs(w1));
   }
-  const double alpha_lo = A.alpha_lo, alpha_hi = A.alpha_hi;
-  const double p00 = alpha_lo * lo, p01 = alpha_lo * hi, p10 = alpha_hi * lo, p11 = alpha_hi * hi;
-  Interval r = dot_interval(widen(A.rest), X, shift, factor);
+  const double p00 = A.alpha_lo * lo, p01 = A.alpha_lo * hi, p10 = A.alpha_hi * lo,
+               p11 = A.alpha_hi * hi;
+  Interval r = dot_interval(A.rest, X, shift, factor);
   r.lo += std::min(std::min(p00, p01), std::min(p10, p11));
   r.hi += std::max(std::max(p00, p01), std::max(p10, p11));
-  r.scale += std::max(std::abs(alpha_lo), std::abs(alpha_hi)) * scale;
+  r.scale += std::max(std::abs(A.alpha_lo), std::abs(A.alpha_hi)) * scale;
   return r;
 }
 
@@ -125,56 +84,47 @@ double farthest2(const Box& X, const Eigen::Vector3d& p) noexcept {
 // The samples' distance from p strictly monotone along the steps `step` of a block (whose
 // samples are `samples`): d2(x_a) - d2(x_(a-1)) = (x_a - x_(a-1)) . (x_a + x_(a-1) - 2 p),
 // beyond the rounding of both distances.
-bool monotone(const detail::VectorBound& step, const FloatBox& bound,
+bool monotone(const detail::VectorBound& step, const Box& samples,
               const Eigen::Vector3d& p) noexcept {
-  const Box samples = widen(bound);
   const Interval r = dot_interval(step, samples, p, 2.0);
   return strict_sign(r, kRounding * (r.scale + farthest2(samples, p))) != 0;
 }
 
 // One sign of S_w . (x - p) at the block's corners (S_w the derivatives in `derivative`).
-bool one_sign(const detail::VectorBound& derivative, const FloatBox& samples,
+bool one_sign(const detail::VectorBound& derivative, const Box& samples,
               const Eigen::Vector3d& p) noexcept {
-  const Interval r = dot_interval(derivative, widen(samples), p, 1.0);
+  const Interval r = dot_interval(derivative, samples, p, 1.0);
   return strict_sign(r, kRounding * r.scale) != 0;
 }
 
-// A VectorBound on vectors given one by one: their mean as the axis (first pass, rounded to
-// float), then each one's part along it and the rest (second pass), rounded outward when
-// stored (finish).
+// A VectorBound on vectors given one by one: their mean as the axis (first pass), then
+// each one's part along it and the rest (second pass).
 class VectorBounder {
  public:
+  explicit VectorBounder(detail::VectorBound& out) : out_(out) {}
   void first(const Eigen::Vector3d& v) noexcept {
     sum_ += v;
     ++count_;
   }
   void second(const Eigen::Vector3d& v) noexcept {
     if (!started_) {
-      const Eigen::Vector3d mean = count_ > 0 ? Eigen::Vector3d(sum_ / count_) : Eigen::Vector3d::Zero();
-      for (int c = 0; c < 3; ++c) axis_[c] = static_cast<float>(mean[c]);
-      if (!axis_.allFinite()) axis_.setZero();  // beyond float's range: the box alone
-      norm2_ = axis_.squaredNorm();
-      rest_.setEmpty();
+      out_.axis = count_ > 0 ? Eigen::Vector3d(sum_ / count_) : Eigen::Vector3d::Zero();
+      norm2_ = out_.axis.squaredNorm();
+      out_.alpha_lo = kInf, out_.alpha_hi = -kInf;
+      out_.rest.setEmpty();
       started_ = true;
     }
-    const double alpha = norm2_ > 0.0 ? v.dot(axis_) / norm2_ : 0.0;
-    alpha_lo_ = std::min(alpha_lo_, alpha);
-    alpha_hi_ = std::max(alpha_hi_, alpha);
-    rest_.extend(Eigen::Vector3d(v - alpha * axis_));
-  }
-  void finish(detail::VectorBound& out) const noexcept {
-    if (!started_) return;  // no vectors: the bound stays zero
-    for (int c = 0; c < 3; ++c) out.axis[c] = static_cast<float>(axis_[c]);
-    out.alpha_lo = round_down(alpha_lo_);
-    out.alpha_hi = round_up(alpha_hi_);
-    out.rest = outward(rest_);
+    const double alpha = norm2_ > 0.0 ? v.dot(out_.axis) / norm2_ : 0.0;
+    out_.alpha_lo = std::min(out_.alpha_lo, alpha);
+    out_.alpha_hi = std::max(out_.alpha_hi, alpha);
+    out_.rest.extend(Eigen::Vector3d(v - alpha * out_.axis));
   }
 
  private:
-  Eigen::Vector3d sum_ = Eigen::Vector3d::Zero(), axis_ = Eigen::Vector3d::Zero();
+  detail::VectorBound& out_;
+  Eigen::Vector3d sum_ = Eigen::Vector3d::Zero();
   long count_ = 0;
-  double norm2_ = 0.0, alpha_lo_ = kInf, alpha_hi_ = -kInf;
-  Box rest_;
+  double norm2_ = 0.0;
   bool started_ = false;
 };
 
@@ -240,7 +190,6 @@ void NurbsSurface::build_block(int index, int i0, int i1, int j0, int j1, int de
 void NurbsSurface::fill_block(CellBlock& b) const {
   const int mu = static_cast<int>(sample_u_.size()), mv = static_cast<int>(sample_v_.size());
   const auto at = [&](int a, int c) { return static_cast<size_t>(a) * mv + c; };
-  Box spheres, samples;
   for (int i = b.i0; i < b.i1; ++i) {
     for (int j = b.j0; j < b.j1; ++j) {
       const size_t cell = static_cast<size_t>(i) * (mv - 1) + j;
@@ -248,17 +197,14 @@ void NurbsSurface::fill_block(CellBlock& b) const {
       const double r = cell_radius_[cell];
       // (widened past the rounding of c -+ r)
       const double reach = r + kRounding * (c.cwiseAbs().maxCoeff() + r);
-      spheres.extend(c - Eigen::Vector3d::Constant(reach));
-      spheres.extend(c + Eigen::Vector3d::Constant(reach));
+      b.spheres.extend(c - Eigen::Vector3d::Constant(reach));
+      b.spheres.extend(c + Eigen::Vector3d::Constant(reach));
     }
   }
   for (int a = std::max(b.i0 - 1, 0); a <= std::min(b.i1 + 1, mu - 1); ++a)
     for (int c = std::max(b.j0 - 1, 0); c <= std::min(b.j1 + 1, mv - 1); ++c)
-      samples.extend(sample_p_[at(a, c)]);
-  b.spheres = outward(spheres);
-  b.samples = outward(samples);
-  b.near = outward(spheres.merged(samples));
-  VectorBounder step_u, step_v, su, sv;
+      b.samples.extend(sample_p_[at(a, c)]);
+  VectorBounder step_u(b.step_u), step_v(b.step_v), su(b.su), sv(b.sv);
   for (int pass = 0; pass < 2; ++pass) {
     const auto add = [pass](VectorBounder& bound, const Eigen::Vector3d& v) {
       if (pass == 0) bound.first(v); else bound.second(v);
@@ -277,10 +223,6 @@ void NurbsSurface::fill_block(CellBlock& b) const {
       }
     }
   }
-  step_u.finish(b.step_u);
-  step_v.finish(b.step_v);
-  su.finish(b.su);
-  sv.finish(b.sv);
 }
 
 // The walk: blocks nearest first (by `visit.distance`), each passed over where
@@ -336,7 +278,7 @@ struct NearestAndCells {
   bool overflow = false;
 
   double distance(const CellBlock& b) const noexcept {
-    return exterior_distance2(b.near, q.p);
+    return b.spheres.merged(b.samples).squaredExteriorDistance(q.p);
   }
   bool prune(double d2) const noexcept { return d2 > best2 * (1.0 + kRounding); }
   bool restrict(const CellBlock& b, unsigned& edges) const noexcept {
@@ -389,7 +331,7 @@ struct CellCandidates {
   typename Query::Starts& best;
 
   double distance(const CellBlock& b) const noexcept {
-    return exterior_distance2(b.spheres, q.p);
+    return b.spheres.squaredExteriorDistance(q.p);
   }
   bool prune(double d2) const noexcept {
     return d2 > std::min(near * near, best.cutoff()) * (1.0 + kRounding);
