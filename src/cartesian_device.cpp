@@ -181,7 +181,15 @@ void CartesianDevice::coordinates(const Eigen::Vector3d& p, const Eigen::Matrix3
   const Eigen::Vector3d start =
       previous ? Eigen::Vector3d(previous[3], previous[4], previous[5]) : Eigen::Vector3d::Zero();
   double ca, sa;
-  const Eigen::Vector3d abc = detail::euler_xyz_nearest(R_sdk, start, ca, sa);
+  Eigen::Vector3d abc = detail::euler_xyz_nearest(R_sdk, start, ca, sa);
+  // the wrist's branch is cos b >= 0 (its range lies within |b| < pi/2); the angles a and c
+  // then within pi of the previous reading's
+  if (std::cos(abc[1]) < 0.0) {
+    abc += Eigen::Vector3d(M_PI, M_PI - 2.0 * abc[1], M_PI);
+    for (int i = 0; i < 3; ++i) {
+      abc[i] += 2.0 * M_PI * detail::round_half_away((start[i] - abc[i]) / (2.0 * M_PI));
+    }
+  }
   q[3] = abc[0];
   q[4] = abc[1];
   q[5] = abc[2];

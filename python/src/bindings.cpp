@@ -888,6 +888,103 @@ NB_MODULE(_core, m) {
         return out;
       });
 
+  nb::class_<CartesianDevice, SerialDevice>(
+      m, "CartesianDevice",
+      "A Cartesian device (Force Dimension omega.3/6/7, sigma.7; Novint Falcon): its SDK serves "
+      "the handle's pose and takes a wrench. Coordinates: position (x, y, z) [m] in the SDK's "
+      "base frame, then, where the wrist's rotation is sensed, (a, b, c) [rad] with R_sdk = "
+      "Rx(a) Ry(b) Rz(c). docs/devices.md, \"Cartesian devices\".")
+      .def(
+          "__init__",
+          [](CartesianDevice* self, const std::string& model, nb::handle handle_rotation) {
+            const Eigen::Matrix3d R = handle_rotation.is_none()
+                                          ? default_cartesian_handle_rotation()
+                                          : Eigen::Matrix3d(to_matrix("handle_rotation",
+                                                                      handle_rotation, 3, 3));
+            new (self) CartesianDevice(model, R);
+          },
+          "model"_a = "omega.6", "handle_rotation"_a = nb::none(),
+          "model: one of CartesianDevice.MODELS; handle_rotation (3, 3): the handle frame in the "
+          "SDK's end-effector frame (default Rx(pi): the stylus along its -z).")
+      .def_prop_ro("model", [](const CartesianDevice& d) { return d.model().name; },
+                   "The model's name, one of CartesianDevice.MODELS.")
+      .def_prop_ro("orientation_sensed", &CartesianDevice::orientation_sensed,
+                   "True where the wrist's rotation is read (6 coordinates; else 3).")
+      .def_prop_ro("torque_actuated", &CartesianDevice::torque_actuated,
+                   "True where the wrist is driven (the device renders a torque).")
+      .def_prop_ro("gripper", [](const CartesianDevice& d) { return d.model().gripper; },
+                   "True where the device has an actuated gripper.")
+      .def_prop_ro("handle_rotation",
+                   [](const CartesianDevice& d) { return Eigen::Matrix3d(d.handle_rotation()); },
+                   "The handle frame's rotation (3, 3) in the SDK's end-effector frame.")
+      .def(
+          "coordinates",
+          [](const CartesianDevice& d, nb::handle p, nb::handle R, nb::handle previous) {
+            Eigen::VectorXd q(d.dof());
+            Eigen::VectorXd prev;
+            if (!previous.is_none()) prev = to_vector("previous", previous, d.dof());
+            d.coordinates(to_vec3("p", p), to_matrix("R", R, 3, 3),
+                          previous.is_none() ? nullptr : prev.data(), q.data());
+            return q;
+          },
+          "p"_a, "R"_a, "previous"_a = nb::none(),
+          "Coordinates (dof,) of the SDK's position p (3,) [m] and rotation R (3, 3); the "
+          "angles on the branch nearest `previous` (dof,).")
+      .def(
+          "sdk_pose",
+          [](const CartesianDevice& d, nb::handle q) {
+            const Eigen::VectorXd x = to_vector("q", q, d.dof());
+            Eigen::Vector3d p;
+            Eigen::Matrix3d R;
+            d.sdk_pose(x.data(), p, R);
+            return nb::make_tuple(p, R);
+          },
+          "q"_a, "(p (3,) [m], R (3, 3)): the SDK's reading at coordinates q.")
+      .def(
+          "rates",
+          [](const CartesianDevice& d, nb::handle q, nb::handle v, nb::handle w) {
+            const Eigen::VectorXd x = to_vector("q", q, d.dof());
+            Eigen::VectorXd dq(d.dof());
+            if (!d.rates(x.data(), to_vec3("v", v), to_vec3("w", w), dq.data())) {
+              throw std::invalid_argument("q: at the gimbal lock (cos b = 0): no angle rates");
+            }
+            return dq;
+          },
+          "q"_a, "v"_a, "w"_a,
+          "Coordinate rates (dof,) of the SDK's linear v [m/s] and angular w [rad/s] velocity.")
+      .def(
+          "wrench",
+          [](const CartesianDevice& d, nb::handle q, nb::handle tau) {
+            const Eigen::VectorXd x = to_vector("q", q, d.dof());
+            const Eigen::VectorXd t = to_vector("tau", tau, d.dof());
+            Eigen::Vector3d f, mo;
+            if (!d.wrench(x.data(), t.data(), f, mo)) {
+              throw std::invalid_argument("q: at the gimbal lock (cos b = 0): no torque");
+            }
+            Vector6 out;
+            out << f, mo;
+            return Eigen::VectorXd(out);
+          },
+          "q"_a, "tau"_a,
+          "The handle wrench (6,) [N; N·m] whose coordinate torques are tau: J^T w = tau.")
+      .def("to_dict", [](const CartesianDevice& d) {
+        nb::dict out;
+        out["type"] = "CartesianDevice";
+        out["model"] = d.model().name;
+        out["handle_rotation"] = Eigen::Vector3d(so3_log(d.handle_rotation()));
+        out["max_force"] = d.max_force();
+        out["max_torque"] = d.max_torque();
+        out["stiffness"] = d.stiffness();
+        out["damping"] = d.damping();
+        return out;
+      });
+  {
+    nb::list names;
+    for (const std::string& n : cartesian_model_names()) names.append(n);
+    m.attr("CartesianDevice").attr("MODELS") =
+        nb::module_::import_("builtins").attr("tuple")(names);
+  }
+
   // --- placement
   nb::class_<PlacementResult>(m, "TrackResult", "Result of track().")
       .def_prop_ro("theta", [](const PlacementResult& r) { return Eigen::VectorXd(r.theta); },

@@ -138,8 +138,17 @@ def _serial_device(d: dict):
     )
 
 
+def _cartesian(d: dict):
+    return vm.CartesianDevice(d["model"], handle_rotation=vm.so3_exp(d["handle_rotation"]))
+
+
 #: a scenario's [device] type -> the device it describes
-DEVICES = {"PhantomOmni": _omni, "Planar3R": _planar3r, "Device": _serial_device}
+DEVICES = {
+    "PhantomOmni": _omni,
+    "Planar3R": _planar3r,
+    "Device": _serial_device,
+    "CartesianDevice": _cartesian,
+}
 
 
 def make_device(d: dict):

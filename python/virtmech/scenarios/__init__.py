@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .. import _core
 from .overrides import (
     apply_overrides,
     override,
@@ -142,6 +143,8 @@ def _consistency_errors(d: dict) -> list[str]:
     if q is not None:
         dev = d["device"]
         n = {"PhantomOmni": 6, "Planar3R": 3}.get(dev["type"]) or len(dev.get("joints", []))
+        if dev["type"] == "CartesianDevice":
+            n = _core.CartesianDevice(dev["model"]).dof
         if len(q) != n:
             errors.append(
                 f"initial.q: expected {n} numbers (one per joint of "

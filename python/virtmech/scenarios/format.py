@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .._core import CONTROLLER_DEFAULTS as _C
+from .._core import CartesianDevice as _Cartesian
 from .schema import Field
 
 INF = float("inf")
@@ -94,6 +95,21 @@ DEVICE = Field(
             "torque_limit": num(1.0, min=0, min_exclusive=True, max=1000),
             "max_force": num(5.0, min=0, min_exclusive=True, max=1000),
             "base_position": vec(3, [0.0, 0.0, 0.0]),
+            **DEVICE_PHYSICS,
+        },
+        "CartesianDevice": {
+            "model": Field(
+                "string",
+                required=True,
+                choices=tuple(_Cartesian.MODELS),
+                doc="the device model: its coordinates, actuation, workspace and limits",
+            ),
+            "handle_rotation": vec(
+                3,
+                [3.141592653589793, 0.0, 0.0],
+                doc="the handle frame's rotation vector in the SDK's end-effector frame [rad] "
+                "(default: the stylus along its -z)",
+            ),
             **DEVICE_PHYSICS,
         },
         "Device": {
