@@ -1,6 +1,7 @@
-"""The stand-in OpenHaptics library (tests/standin) for the tests of `virtmech drive`: found
-or built with CMake, configured through the file VIRTMECH_STANDIN_CONFIG names, and its trace
-read back (the summary's key-value lines and one row per tick)."""
+"""The stand-in vendor libraries (tests/standin: OpenHaptics HD, Force Dimension DHD) for the
+tests of `virtmech drive`: found or built with CMake, configured through the file
+VIRTMECH_STANDIN_CONFIG names, and their traces read back (the summary's key-value lines and
+one row per tick)."""
 
 from __future__ import annotations
 
@@ -34,11 +35,14 @@ def _cmake(*args: str, cwd: Path = ROOT) -> None:
         )
 
 
-def standin_library() -> Path:
-    """The stand-in libHD.so: $VIRTMECH_STANDIN_HD, else built with CMake (the target
-    virtmech_standin_hd) in build/cpp where scripts/test.sh configured it, else in
+def standin_library(sdk: str = "hd") -> Path:
+    """The stand-in libHD.so (sdk "hd") or libdhd.so (sdk "dhd"): $VIRTMECH_STANDIN_HD (or
+    $VIRTMECH_STANDIN_DHD), else built with CMake (the target virtmech_standin_hd or
+    virtmech_standin_dhd) in build/cpp where scripts/test.sh configured it, else in
     build/standin. A failure to build raises (the tests fail: they are never skipped)."""
-    given = os.environ.get("VIRTMECH_STANDIN_HD")
+    target, file = {"hd": ("virtmech_standin_hd", "libHD.so"),
+                    "dhd": ("virtmech_standin_dhd", "libdhd.so")}[sdk]
+    given = os.environ.get(f"VIRTMECH_STANDIN_{sdk.upper()}")
     if given:
         return Path(given)
     (ROOT / "build").mkdir(exist_ok=True)
@@ -59,8 +63,8 @@ def standin_library() -> Path:
                     "-DVIRTMECH_BUILD_STANDIN=ON",
                     f"-DPython_EXECUTABLE={sys.executable}",
                 )
-        _cmake("--build", str(build), "--target", "virtmech_standin_hd", "-j", "2")
-    lib = build / "tests" / "standin" / "libHD.so"
+        _cmake("--build", str(build), "--target", target, "-j", "2")
+    lib = build / "tests" / "standin" / file
     if not lib.exists():
         raise RuntimeError(f"the stand-in HD library was not built: {lib}")
     return lib

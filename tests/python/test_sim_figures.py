@@ -92,7 +92,9 @@ def test_fig10_large_force_brings_the_handle_to_the_circle(runs, dev):
     fmag = np.linalg.norm(F, axis=1)
     approach = (d >= 0.8 * d[0]) & (fmag >= 1.0)  # the start of the approach, far away
     assert approach.sum() >= 20  # a "large force" phase exists
-    assert fmag.max() >= 0.99 * r.info["device"]["max_force"]  # it is as large as allowed
+    # it is as large as allowed: the controller's force limit (the device's, or lower where
+    # the scenario says so: the omega.6's figure keeps the Omni's 3.3 N)
+    assert fmag.max() >= 0.99 * r.info["controller_model"]["max_force"]
     # the straight line to the nearest circle point is -rad (outside) or +rad (inside)
     L = r.scenario["mechanism"]["length"]
     P = r.cols("px", "py", "pz")

@@ -62,6 +62,7 @@
 #include <thread>
 #include <vector>
 
+#include "standin_config.hpp"
 #include "virtmech/drivers/hd_api.h"
 
 #if VM_STANDIN_MUJOCO
@@ -80,64 +81,9 @@ namespace {
 constexpr int kJoints = 6;
 constexpr HHD kHandle = 0;
 
-// --- configuration -----------------------------------------------------------------------
+// --- configuration: standin_config.hpp ----------------------------------------------------
 
-class Config {
- public:
-  void load() {
-    const char* path = std::getenv("VIRTMECH_STANDIN_CONFIG");
-    if (path == nullptr || path[0] == '\0') return;
-    std::ifstream in(path);
-    if (!in) {
-      std::fprintf(stderr, "standin libHD: cannot read %s\n", path);
-      return;
-    }
-    std::string line;
-    while (std::getline(in, line)) {
-      const auto hash = line.find('#');
-      if (hash != std::string::npos) line.erase(hash);
-      std::istringstream words(line);
-      std::string key;
-      if (!(words >> key)) continue;
-      std::vector<std::string> values;
-      for (std::string v; words >> v;) values.push_back(v);
-      values_[key] = values;
-    }
-  }
-  bool has(const std::string& key) const { return values_.count(key) > 0; }
-  std::string text(const std::string& key, const std::string& fallback) const {
-    auto it = values_.find(key);
-    if (it == values_.end() || it->second.empty()) return fallback;
-    std::string out;
-    for (const auto& w : it->second) out += (out.empty() ? "" : " ") + w;
-    return out;
-  }
-  double number(const std::string& key, double fallback, size_t i = 0) const {
-    auto it = values_.find(key);
-    if (it == values_.end() || it->second.size() <= i) return fallback;
-    return std::strtod(it->second[i].c_str(), nullptr);
-  }
-  long integer(const std::string& key, long fallback, size_t i = 0) const {
-    auto it = values_.find(key);
-    if (it == values_.end() || it->second.size() <= i) return fallback;
-    return std::strtol(it->second[i].c_str(), nullptr, 0);
-  }
-  std::vector<double> numbers(const std::string& key) const {
-    std::vector<double> out;
-    auto it = values_.find(key);
-    if (it != values_.end()) {
-      for (const auto& w : it->second) out.push_back(std::strtod(w.c_str(), nullptr));
-    }
-    return out;
-  }
-  std::vector<std::string> words(const std::string& key) const {
-    auto it = values_.find(key);
-    return it == values_.end() ? std::vector<std::string>{} : it->second;
-  }
-
- private:
-  std::map<std::string, std::vector<std::string>> values_;
-};
+using standin_config::Config;
 
 std::vector<double> read_doubles(const std::string& path, size_t count) {
   std::vector<double> out(count, 0.0);

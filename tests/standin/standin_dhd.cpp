@@ -1,0 +1,301 @@
+// A stand-in for the Force Dimension DHD library (libdhd.so), built by the project so that the
+// Force Dimension driver runs end to end without the SDK or a device: it exports the same C
+// functions (virtmech/drivers/dhd_api.h, VM_DHD_FUNCTIONS) and serves a device in DHD's units
+// and conventions (SI; the handle's position and its orientation frame R = Rx(a) Ry(b) Rz(c)):
+//
+//   mode hold     the handle held still at `position` and `rotation` (a b c), or moving along
+//                 a straight line at `velocity` from there (the ticks count the time)
+//
+// DHD has no scheduler: the application's own thread reads the pose and sets the force once
+// per tick; a tick here is one dhdGetPositionAndOrientationFrame call. The stand-in can refuse
+// dhdOpen, report any system type (dhdGetSystemType), and fail a call of one tick; it checks
+// how it is used: force set only while forces are enabled, no call after dhdClose, dhdStop
+// before dhdClose, no force but zero after a failed call. What it saw is written at dhdClose:
+// a summary (key value lines) and one row per tick (the pose served, the force, torque and
+// gripper force set).
+//
+// Configuration: the file named by VIRTMECH_STANDIN_CONFIG, one "key value..." per line ('#'
+// starts a comment); every key is optional.
+//
+//   trace PATH (summary; the ticks go to PATH.ticks)    max_ticks N (default 120000)
+//   system_type N (default 34, an omega.6)    open_error TEXT (dhdOpen fails with it)
+//   position X Y Z [m]    rotation A B C [rad]    velocity VX VY VZ [m/s]
+//   error_at TICK pose|velocity|force        the call of that tick fails
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "standin_config.hpp"
+#include "virtmech/drivers/dhd_api.h"
+
+#define VM_STANDIN_EXPORT extern "C" __attribute__((visibility("default")))
+
+// the library's functions with DHD's signatures, checked against the one declaration
+#define VM_STANDIN_DECLARE(ret, name, params) VM_STANDIN_EXPORT ret name params;
+VM_DHD_FUNCTIONS(VM_STANDIN_DECLARE)
+#undef VM_STANDIN_DECLARE
+
+namespace {
+
+// one row per tick: tick, position served (3), gimbal angles served (3), force set (3),
+// torque set (3), gripper force set (NaN: none), the call that set it (1 dhdSetForceAndTorque,
+// 2 ...AndGripperForce, 0 none), failure injected (0 none, 1 pose, 2 velocity, 3 force), the
+// gap since the last tick [s]
+constexpr int kTraceWidth = 17;
+
+using standin_config::Config;
+
+enum Failure { kNone = 0, kPose = 1, kVelocity = 2, kForce = 3 };
+
+class Standin {
+ public:
+  int open();
+  int close(char id);
+  int system_type(char id);
+  int enable_force(unsigned char on, char id);
+  int pose(double* px, double* py, double* pz, double R[3][3], char id);
+  int linear_velocity(double* vx, double* vy, double* vz, char id);
+  int angular_velocity(double* wx, double* wy, double* wz, char id);
+  int set_force(double fx, double fy, double fz, double tx, double ty, double tz, double fg,
+                int call, char id);
+  int stop(char id);
+  const char* last_error() const { return error_.c_str(); }
+
+ private:
+  bool usable(char id);
+  bool failing(Failure f);
+  void write_trace();
+
+  Config config_;
+  bool open_ = false;
+  std::string error_;
+  int system_type_ = VM_DHD_OMEGA6_RIGHT;
+  double position_[3] = {0, 0, 0}, angles_[3] = {0, 0, 0}, velocity_[3] = {0, 0, 0};
+  double period_s_ = 1e-3;
+  bool force_enabled_ = false, failed_ = false;
+  long opens_ = 0, closes_ = 0, stops_ = 0, enables_ = 0, disables_ = 0, bad_id_ = 0;
+  long sets_ = 0, sets_without_force_ = 0, nonzero_after_failure_ = 0, calls_closed_ = 0;
+  long stop_before_close_ = 0, ticks_ = 0, error_at_ = -1;
+  Failure error_call_ = kNone;
+  std::vector<double> trace_;
+  long max_ticks_ = 120000;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+Standin& standin() {
+  static Standin s;
+  return s;
+}
+
+void gimbal(const double* abc, double R[3][3]) {
+  const double sa = std::sin(abc[0]), ca = std::cos(abc[0]), sb = std::sin(abc[1]),
+               cb = std::cos(abc[1]), sc = std::sin(abc[2]), cc = std::cos(abc[2]);
+  const double M[3][3] = {{cb * cc, -cb * sc, sb},
+                          {sa * sb * cc + ca * sc, -sa * sb * sc + ca * cc, -sa * cb},
+                          {-ca * sb * cc + sa * sc, ca * sb * sc + sa * cc, ca * cb}};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) R[i][j] = M[i][j];
+  }
+}
+
+int Standin::open() {
+  config_ = Config();
+  config_.load();
+  if (config_.has("open_error")) {
+    error_ = config_.text("open_error", "no device found");
+    return -1;
+  }
+  if (open_) {
+    error_ = "the device is already open";
+    return -1;
+  }
+  open_ = true;
+  failed_ = force_enabled_ = false;
+  opens_ = 1;
+  closes_ = stops_ = enables_ = disables_ = bad_id_ = sets_ = sets_without_force_ = 0;
+  nonzero_after_failure_ = calls_closed_ = stop_before_close_ = ticks_ = 0;
+  error_.clear();
+  system_type_ = static_cast<int>(config_.number("system_type", VM_DHD_OMEGA6_RIGHT));
+  for (int i = 0; i < 3; ++i) {
+    position_[i] = config_.number("position", 0.0, static_cast<size_t>(i));
+    angles_[i] = config_.number("rotation", 0.0, static_cast<size_t>(i));
+    velocity_[i] = config_.number("velocity", 0.0, static_cast<size_t>(i));
+  }
+  period_s_ = config_.number("period_s", 1e-3);
+  error_at_ = static_cast<long>(config_.number("error_at", -1.0));
+  const std::string call = config_.text("error_at", "");
+  error_call_ = call.find("velocity") != std::string::npos ? kVelocity
+                : call.find("force") != std::string::npos  ? kForce
+                : call.find("pose") != std::string::npos   ? kPose
+                                                           : kNone;
+  max_ticks_ = static_cast<long>(config_.number("max_ticks", 120000));
+  trace_.assign(static_cast<size_t>(max_ticks_) * kTraceWidth,
+                std::numeric_limits<double>::quiet_NaN());
+  return 0;  // the device's ID
+}
+
+bool Standin::usable(char id) {
+  if (!open_) {
+    ++calls_closed_;
+    error_ = "no device open";
+    return false;
+  }
+  if (id != 0 && id != -1) {
+    ++bad_id_;
+    error_ = "invalid device ID";
+    return false;
+  }
+  return true;
+}
+
+bool Standin::failing(Failure f) {
+  if (ticks_ - 1 != error_at_ || error_call_ != f) return false;
+  failed_ = true;
+  error_ = "communication error (stand-in: injected at tick " + std::to_string(error_at_) + ")";
+  const long row = ticks_ - 1;
+  if (row >= 0 && row < max_ticks_) trace_[static_cast<size_t>(row * kTraceWidth + 15)] = f;
+  return true;
+}
+
+int Standin::close(char id) {
+  if (!usable(id)) return -1;
+  ++closes_;
+  write_trace();
+  open_ = false;
+  return 0;
+}
+
+int Standin::system_type(char id) { return usable(id) ? system_type_ : -1; }
+
+int Standin::enable_force(unsigned char on, char id) {
+  if (!usable(id)) return -1;
+  force_enabled_ = on != 0;
+  ++(on ? enables_ : disables_);
+  return 0;
+}
+
+int Standin::pose(double* px, double* py, double* pz, double R[3][3], char id) {
+  if (!usable(id)) return -1;
+  const auto now = std::chrono::steady_clock::now();
+  const double gap = ticks_ > 0 ? std::chrono::duration<double>(now - last_).count()
+                                : std::numeric_limits<double>::quiet_NaN();
+  last_ = now;
+  const long row = ticks_++;
+  if (failing(kPose)) return -1;
+  const double t = static_cast<double>(row) * period_s_;
+  double p[3];
+  for (int i = 0; i < 3; ++i) p[i] = position_[i] + velocity_[i] * t;
+  *px = p[0];
+  *py = p[1];
+  *pz = p[2];
+  gimbal(angles_, R);
+  if (row < max_ticks_) {
+    double* r = &trace_[static_cast<size_t>(row * kTraceWidth)];
+    r[0] = static_cast<double>(row);
+    for (int i = 0; i < 3; ++i) {
+      r[1 + i] = p[i];
+      r[4 + i] = angles_[i];
+    }
+    r[14] = 0.0;
+    r[15] = 0.0;
+    r[16] = gap;
+  }
+  return 0;
+}
+
+int Standin::linear_velocity(double* vx, double* vy, double* vz, char id) {
+  if (!usable(id)) return -1;
+  if (failing(kVelocity)) return -1;
+  *vx = velocity_[0];
+  *vy = velocity_[1];
+  *vz = velocity_[2];
+  return 0;
+}
+
+int Standin::angular_velocity(double* wx, double* wy, double* wz, char id) {
+  if (!usable(id)) return -1;
+  *wx = *wy = *wz = 0.0;
+  return 0;
+}
+
+int Standin::set_force(double fx, double fy, double fz, double tx, double ty, double tz,
+                       double fg, int call, char id) {
+  if (!usable(id)) return -1;
+  ++sets_;
+  if (!force_enabled_) ++sets_without_force_;
+  const bool nonzero = fx != 0 || fy != 0 || fz != 0 || tx != 0 || ty != 0 || tz != 0 || fg != 0;
+  if (failed_ && nonzero) ++nonzero_after_failure_;
+  const long row = ticks_ - 1;
+  if (row >= 0 && row < max_ticks_) {
+    double* r = &trace_[static_cast<size_t>(row * kTraceWidth)];
+    const double v[7] = {fx, fy, fz, tx, ty, tz, fg};
+    for (int i = 0; i < 7; ++i) r[7 + i] = v[i];
+    r[14] = call;
+  }
+  if (failing(kForce)) return -1;
+  return 0;
+}
+
+int Standin::stop(char id) {
+  if (!usable(id)) return -1;
+  ++stops_;
+  if (closes_ == 0) ++stop_before_close_;
+  force_enabled_ = false;
+  return 0;
+}
+
+void Standin::write_trace() {
+  const std::string path = config_.text("trace", "");
+  if (path.empty()) return;
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) return;
+  std::fprintf(f,
+               "opens %ld\ncloses %ld\nstops %ld\nstop_before_close %ld\nenables %ld\n"
+               "disables %ld\nsets %ld\nsets_without_force %ld\nnonzero_after_failure %ld\n"
+               "calls_closed %ld\nbad_id %ld\nticks %ld\nsystem_type %d\n",
+               opens_, closes_, stops_, stop_before_close_, enables_, disables_, sets_,
+               sets_without_force_, nonzero_after_failure_, calls_closed_, bad_id_, ticks_,
+               system_type_);
+  std::fclose(f);
+  std::FILE* t = std::fopen((path + ".ticks").c_str(), "wb");
+  if (t == nullptr) return;
+  const long rows = std::min(ticks_, max_ticks_);
+  std::fwrite(trace_.data(), sizeof(double), static_cast<size_t>(rows * kTraceWidth), t);
+  std::fclose(t);
+}
+
+}  // namespace
+
+VM_STANDIN_EXPORT int dhdOpen(void) { return standin().open(); }
+VM_STANDIN_EXPORT int dhdClose(char id) { return standin().close(id); }
+VM_STANDIN_EXPORT int dhdGetSystemType(char id) { return standin().system_type(id); }
+VM_STANDIN_EXPORT int dhdEnableForce(unsigned char on, char id) {
+  return standin().enable_force(on, id);
+}
+VM_STANDIN_EXPORT int dhdGetPositionAndOrientationFrame(double* px, double* py, double* pz,
+                                                        double matrix[3][3], char id) {
+  return standin().pose(px, py, pz, matrix, id);
+}
+VM_STANDIN_EXPORT int dhdGetLinearVelocity(double* vx, double* vy, double* vz, char id) {
+  return standin().linear_velocity(vx, vy, vz, id);
+}
+VM_STANDIN_EXPORT int dhdGetAngularVelocityRad(double* wx, double* wy, double* wz, char id) {
+  return standin().angular_velocity(wx, wy, wz, id);
+}
+VM_STANDIN_EXPORT int dhdSetForceAndTorque(double fx, double fy, double fz, double tx, double ty,
+                                           double tz, char id) {
+  return standin().set_force(fx, fy, fz, tx, ty, tz, 0.0, 1, id);
+}
+VM_STANDIN_EXPORT int dhdSetForceAndTorqueAndGripperForce(double fx, double fy, double fz,
+                                                          double tx, double ty, double tz,
+                                                          double fg, char id) {
+  return standin().set_force(fx, fy, fz, tx, ty, tz, fg, 2, id);
+}
+VM_STANDIN_EXPORT int dhdGetButton(int, char id) { return standin().system_type(id) < 0 ? -1 : 0; }
+VM_STANDIN_EXPORT int dhdStop(char id) { return standin().stop(id); }
+VM_STANDIN_EXPORT const char* dhdErrorGetLastStr(void) { return standin().last_error(); }
