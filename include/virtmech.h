@@ -14,6 +14,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "virtmech/settings_table.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -45,14 +47,14 @@ extern "C" {
 /* Largest capacity of a mechanism set (vm_mechanism_set_create). */
 #define VM_MAX_SET_MEMBERS 16
 
-/* Device models. */
+/* Device models (the `type` of a vm_device_desc: an int, checked before it is used). */
 typedef enum vm_device_type {
   VM_DEVICE_PHANTOM_OMNI = 0, /* PHANTOM Omni / Geomagic Touch, default parameters */
   VM_DEVICE_PLANAR3R = 1,     /* the paper's Fig. 8 planar robot, distal joint passive */
   VM_DEVICE_SERIAL = 2        /* a serial chain with any actuation mask */
 } vm_device_type;
 
-/* Virtual mechanisms. */
+/* Virtual mechanisms (the `type` of a vm_mechanism_desc: an int, checked before it is used). */
 typedef enum vm_mechanism_type {
   VM_MECHANISM_PLANAR_ARM = 0,  /* point = pivot, normal, length, direction = zero_direction
                                    (zero = automatic) */
@@ -102,7 +104,7 @@ typedef struct vm_chain {
  * VM_DEVICE_SERIAL: chain, actuated, torque_limit (<= 0: none), max_force, max_torque
  *   (<= 0: none), stiffness, damping, name. */
 typedef struct vm_device_desc {
-  vm_device_type type;
+  int type;                          /* a vm_device_type */
   double link1, link2;               /* [m] (Omni, Planar3R) */
   double base[16];                   /* row-major 4x4 (Planar3R) */
   vm_chain chain;                    /* (serial) */
@@ -119,7 +121,7 @@ typedef struct vm_device_desc {
 
 /* Mechanism description (see vm_mechanism_type for which fields each uses). */
 typedef struct vm_mechanism_desc {
-  vm_mechanism_type type;
+  int type;            /* a vm_mechanism_type */
   double point[3];
   double normal[3];
   double direction[3]; /* zero direction (PlanarArm), line direction (LineGuide),
@@ -134,26 +136,33 @@ typedef struct vm_mechanism_desc {
                             NULL by vm_mechanism_desc_init. Not kept past the create call. */
 } vm_mechanism_desc;
 
-/* Controller settings; vm_settings_init fills the defaults. has_* = 0 keeps a default. */
+/* The values of vm_settings' enumerations (VM_CONTROL_LAWS, VM_ERROR_VELOCITIES and
+ * VM_PASSIVITIES in virtmech/settings_table.h say what each means). */
+#define VM_C_LAW(cpp, c, value, name, doc) VM_LAW_##c = value,
+#define VM_C_ERROR_VELOCITY(cpp, c, value, name, doc) VM_ERROR_VELOCITY_##c = value,
+#define VM_C_PASSIVITY(cpp, c, value, name, doc) VM_PASSIVITY_##c = value,
+typedef enum vm_law { VM_CONTROL_LAWS(VM_C_LAW) } vm_law;
+typedef enum vm_error_velocity { VM_ERROR_VELOCITIES(VM_C_ERROR_VELOCITY) } vm_error_velocity;
+typedef enum vm_passivity { VM_PASSIVITIES(VM_C_PASSIVITY) } vm_passivity;
+#undef VM_C_LAW
+#undef VM_C_ERROR_VELOCITY
+#undef VM_C_PASSIVITY
+
+/* Controller settings, one member per row of VM_CONTROLLER_SETTINGS (virtmech/settings_table.h:
+ * each row's unit, default, range and meaning): for a 6-vector row NAME, has_NAME (0 keeps the
+ * default, derived from the device and the mechanism) and NAME[6]; a number row a double; an
+ * integer row an int; an enumeration row an int (law: VM_LAW_*, error_velocity:
+ * VM_ERROR_VELOCITY_*, passivity: VM_PASSIVITY_*), checked as an integer before it is used.
+ * vm_settings_init fills the defaults. */
 typedef struct vm_settings {
-  int has_kp, has_kv, has_w_a, has_w_e, has_w_e_star;
-  double kp[6], kv[6], w_a[6], w_e[6], w_e_star[6];
-  double length_scale;   /* [m]; 0 = the mechanism's */
-  int law;               /* 0 auto, 1 null space (eq. 11), 2 under-actuated (eq. 26) */
-  int error_velocity;    /* 0 relative (default), 1 handle (paper eq. 10) */
-  double period_s;       /* [s] */
-  double ramp_time_s;    /* [s] */
-  double watchdog_s;     /* [s]; 0 = off */
-  double max_force;      /* [N]; 0 = device's */
-  double max_torque;     /* [N·m]; 0 = device's */
-  int max_iterations;
-  int max_iterations_initial;
-  double secondary_weight; /* tie-break weight of the full pose in both placements */
-  double range_margin_rad; /* q may leave the joint range by this much [rad] ... */
-  double range_margin_m;   /* ... or [m] before the fault VM_STATUS_FAULT_OUT_OF_RANGE */
-  int passivity;           /* 1 energy tank (default), 0 off */
-  double passivity_max_energy_j; /* the most energy the tank holds [J]; inf: no cap */
-  double passivity_fade_j;       /* the range term fades out as the tank falls to -this [J] */
+#define VM_C_VEC6(name, unit, doc) int has_##name; double name[6];
+#define VM_C_REAL(name, value, min, max, flags, unit, doc) double name;
+#define VM_C_INT(name, value, min, max, unit, doc) int name;
+#define VM_C_ENUM(name, Type, value, doc) int name;
+  VM_CONTROLLER_SETTINGS(VM_C_VEC6, VM_C_REAL, VM_C_INT, VM_C_ENUM)
+#undef VM_C_VEC6
+#undef VM_C_INT
+#undef VM_C_ENUM
 } vm_settings;
 
 /* Diagnostics of the last cycle. */
@@ -179,14 +188,12 @@ typedef struct vm_diagnostics {
 
 typedef struct vm_controller vm_controller;
 
-/* Settings of a mechanism set; vm_set_settings_init fills the defaults. */
+/* Settings of a mechanism set, one double per row of VM_SET_SETTINGS
+ * (virtmech/settings_table.h); vm_set_settings_init fills the defaults. */
 typedef struct vm_set_settings {
-  double snap_distance;    /* a member engages within this distance [m] */
-  double release_distance; /* ... and lets go beyond this one [m] (>= snap_distance) */
-  double force_rate;       /* largest change of the force while switching [N/s] */
-  double moment_rate;      /* largest change of the moment while switching [N·m/s] */
-  double period_s;         /* servo period [s], for the rates */
+  VM_SET_SETTINGS(VM_C_REAL)
 } vm_set_settings;
+#undef VM_C_REAL
 
 /* Diagnostics of the last cycle of a mechanism set. */
 typedef struct vm_set_diagnostics {
@@ -207,10 +214,13 @@ typedef struct vm_set_diagnostics {
  * members moves the force at no more than the set rates (docs/theory.md, section 7). */
 typedef struct vm_mechanism_set vm_mechanism_set;
 
-/* Fills a device description with defaults for the given type. Does not allocate. */
-void vm_device_desc_init(vm_device_desc* desc, vm_device_type type);
-/* Fills a mechanism description with defaults for the given type. Does not allocate. */
-void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type);
+/* Fills a device description with defaults for the given type (a vm_device_type; another
+ * value leaves the type-specific fields zero, and vm_controller_create then refuses it).
+ * Does not allocate. */
+void vm_device_desc_init(vm_device_desc* desc, int type);
+/* Fills a mechanism description with defaults for the given type (a vm_mechanism_type).
+ * Does not allocate. */
+void vm_mechanism_desc_init(vm_mechanism_desc* desc, int type);
 /* Fills settings with the defaults. Does not allocate. */
 void vm_settings_init(vm_settings* settings);
 

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "c_api_handles.hpp"
+#include "virtmech/params.hpp"
 #include "virtmech/validate.hpp"
 #include "virtmech/virtmech.hpp"
 
@@ -105,12 +106,8 @@ KinematicChain chain_from(const vm_chain& c) {
   std::vector<Joint> joints;
   for (int i = 0; i < c.dof; ++i) {
     Joint j;
-    if (c.joints[i].type != 0 && c.joints[i].type != 1) {
-      throw std::invalid_argument("chain.joints[" + std::to_string(i) +
-                                  "].type: expected 0 (revolute) or 1 (prismatic), got " +
-                                  std::to_string(c.joints[i].type));
-    }
-    j.type = c.joints[i].type == 0 ? JointType::kRevolute : JointType::kPrismatic;
+    j.type = enum_from_int<JointType>("chain.joints[" + std::to_string(i) + "].type",
+                                      c.joints[i].type);
     j.axis = v3(c.joints[i].axis);
     j.origin = pose_from(c.joints[i].origin);
     j.lower = c.joints[i].lower;
@@ -160,7 +157,7 @@ std::shared_ptr<const Device> device_from(const vm_device_desc& d) {
     }
   }
   throw std::invalid_argument("device.type: expected VM_DEVICE_PHANTOM_OMNI, VM_DEVICE_PLANAR3R "
-                              "or VM_DEVICE_SERIAL, got " + std::to_string(static_cast<int>(d.type)));
+                              "or VM_DEVICE_SERIAL, got " + std::to_string(d.type));
 }
 
 bool unilateral_from(const vm_mechanism_desc& m) {
@@ -234,7 +231,7 @@ std::shared_ptr<const Mechanism> mechanism_from(const vm_mechanism_desc& m) {
                                           m.length_scale == 0.0 ? 0.1 : m.length_scale);
   }
   throw std::invalid_argument("mechanism.type: expected a vm_mechanism_type, got " +
-                              std::to_string(static_cast<int>(m.type)));
+                              std::to_string(m.type));
 }
 
 Vector6 v6(const double* v) {
@@ -243,42 +240,28 @@ Vector6 v6(const double* v) {
   return out;
 }
 
+// One conversion per row of VM_CONTROLLER_SETTINGS; an enumeration's int is checked
+// before it becomes the C++ enumeration.
 ControllerSettings settings_from(const vm_settings& s) {
   ControllerSettings c;
-  if (s.has_kp) c.kp = v6(s.kp);
-  if (s.has_kv) c.kv = v6(s.kv);
-  if (s.has_w_a) c.w_a = v6(s.w_a);
-  if (s.has_w_e) c.w_e = v6(s.w_e);
-  if (s.has_w_e_star) c.w_e_star = v6(s.w_e_star);
-  c.length_scale = s.length_scale;
-  if (s.law < 0 || s.law > 2) {
-    throw std::invalid_argument("settings.law: expected 0, 1 or 2, got " + std::to_string(s.law));
-  }
-  c.law = static_cast<ControlLaw>(s.law);
-  if (s.error_velocity < 0 || s.error_velocity > 1) {
-    throw std::invalid_argument("settings.error_velocity: expected 0 or 1, got " +
-                                std::to_string(s.error_velocity));
-  }
-  c.error_velocity = static_cast<ErrorVelocity>(s.error_velocity);
-  c.period_s = s.period_s;
-  c.ramp_time_s = s.ramp_time_s;
-  c.watchdog_s = s.watchdog_s;
-  c.max_force = s.max_force;
-  c.max_torque = s.max_torque;
-  c.max_iterations = s.max_iterations;
-  c.max_iterations_initial = s.max_iterations_initial;
-  c.secondary_weight = s.secondary_weight;
-  c.range_margin_rad = s.range_margin_rad;
-  c.range_margin_m = s.range_margin_m;
-  if (s.passivity < 0 || s.passivity > 1) {
-    throw std::invalid_argument("settings.passivity: expected 0 (off) or 1 (energy tank), got " +
-                                std::to_string(s.passivity));
-  }
-  c.passivity = static_cast<Passivity>(s.passivity);
-  c.passivity_max_energy_j = s.passivity_max_energy_j;
-  c.passivity_fade_j = s.passivity_fade_j;
+#define VM_FROM_VEC6(name, unit, doc) \
+  if (s.has_##name) c.name = v6(s.name);
+#define VM_FROM_REAL(name, value, min, max, flags, unit, doc) c.name = s.name;
+#define VM_FROM_INT(name, value, min, max, unit, doc) c.name = s.name;
+#define VM_FROM_ENUM(name, Type, value, doc) c.name = enum_from_int<Type>(#name, s.name);
+  VM_CONTROLLER_SETTINGS(VM_FROM_VEC6, VM_FROM_REAL, VM_FROM_INT, VM_FROM_ENUM)
+#undef VM_FROM_VEC6
+#undef VM_FROM_INT
+#undef VM_FROM_ENUM
   return c;
 }
+
+MechanismSetSettings set_settings_from(const vm_set_settings& s) {
+  MechanismSetSettings c;
+  VM_SET_SETTINGS(VM_FROM_REAL)
+  return c;
+}
+#undef VM_FROM_REAL
 
 // The C++ constructors name their own parameters ("zero_direction: expected ..."); a C
 // caller fills struct fields: the message names the field ("mechanism.direction: ...").
@@ -428,7 +411,7 @@ void zero_torque(double* tau, int n) {
 
 extern "C" {
 
-void vm_device_desc_init(vm_device_desc* desc, vm_device_type type) {
+void vm_device_desc_init(vm_device_desc* desc, int type) {
   std::memset(desc, 0, sizeof(*desc));
   desc->type = type;
   identity16(desc->base);
@@ -456,7 +439,7 @@ void vm_device_desc_init(vm_device_desc* desc, vm_device_type type) {
   }
 }
 
-void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type) {
+void vm_mechanism_desc_init(vm_mechanism_desc* desc, int type) {
   std::memset(desc, 0, sizeof(*desc));
   desc->type = type;
   desc->normal[2] = 1.0;
@@ -470,22 +453,14 @@ void vm_mechanism_desc_init(vm_mechanism_desc* desc, vm_mechanism_type type) {
 void vm_settings_init(vm_settings* s) {
   std::memset(s, 0, sizeof(*s));
   const ControllerSettings d;
-  s->length_scale = d.length_scale;
-  s->law = static_cast<int>(d.law);
-  s->error_velocity = static_cast<int>(d.error_velocity);
-  s->period_s = d.period_s;
-  s->ramp_time_s = d.ramp_time_s;
-  s->watchdog_s = d.watchdog_s;
-  s->max_force = d.max_force;
-  s->max_torque = d.max_torque;
-  s->max_iterations = d.max_iterations;
-  s->max_iterations_initial = d.max_iterations_initial;
-  s->secondary_weight = d.secondary_weight;
-  s->range_margin_rad = d.range_margin_rad;
-  s->range_margin_m = d.range_margin_m;
-  s->passivity = static_cast<int>(d.passivity);
-  s->passivity_max_energy_j = d.passivity_max_energy_j;
-  s->passivity_fade_j = d.passivity_fade_j;
+#define VM_INIT_VEC6(name, unit, doc)
+#define VM_INIT_REAL(name, value, min, max, flags, unit, doc) s->name = d.name;
+#define VM_INIT_INT(name, value, min, max, unit, doc) s->name = d.name;
+#define VM_INIT_ENUM(name, Type, value, doc) s->name = static_cast<int>(d.name);
+  VM_CONTROLLER_SETTINGS(VM_INIT_VEC6, VM_INIT_REAL, VM_INIT_INT, VM_INIT_ENUM)
+#undef VM_INIT_VEC6
+#undef VM_INIT_INT
+#undef VM_INIT_ENUM
 }
 
 int vm_controller_create(const vm_device_desc* device, const vm_mechanism_desc* mechanism,
@@ -608,12 +583,9 @@ void vm_shape_destroy(vm_shape* shape) { delete shape; }
 
 void vm_set_settings_init(vm_set_settings* s) {
   const MechanismSetSettings d;
-  s->snap_distance = d.snap_distance;
-  s->release_distance = d.release_distance;
-  s->force_rate = d.force_rate;
-  s->moment_rate = d.moment_rate;
-  s->period_s = d.period_s;
+  VM_SET_SETTINGS(VM_INIT_REAL)
 }
+#undef VM_INIT_REAL
 
 int vm_mechanism_set_create(const vm_device_desc* device, int capacity,
                             const vm_set_settings* settings, vm_mechanism_set** out,
@@ -621,14 +593,7 @@ int vm_mechanism_set_create(const vm_device_desc* device, int capacity,
   return create_into(out, "mechanism set", error, error_size, [&] {
     if (!device) throw std::invalid_argument("device: expected a description, got NULL");
     auto dev = in_c_terms("device", *device, device_from);
-    MechanismSetSettings s;
-    if (settings) {
-      s.snap_distance = settings->snap_distance;
-      s.release_distance = settings->release_distance;
-      s.force_rate = settings->force_rate;
-      s.moment_rate = settings->moment_rate;
-      s.period_s = settings->period_s;
-    }
+    const MechanismSetSettings s = settings ? set_settings_from(*settings) : MechanismSetSettings();
     try {
       return new vm_mechanism_set(dev, capacity, s);
     } catch (const std::invalid_argument& e) {

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 #include <stdexcept>
 
 #include "cycle_clock.hpp"
@@ -17,22 +16,9 @@ namespace virtmech {
 
 namespace {
 
-Vector6 scaled_ones(double L) {
-  Vector6 w;
-  w << 1.0, 1.0, 1.0, L * L, L * L, L * L;
-  return w;
-}
-
-Vector6 checked_weights(const std::string& name, const Vector6& w) {
-  require_non_negative(name, w);
-  return w;
-}
-
 // largest change per cycle, as a fraction of the placement's step cap, that the warm start
 // extrapolates
 constexpr double kWarmStartFraction = 0.1;
-
-constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
 
 // The warm start of a placement: theta moved on by its last change, when that change is
 // the smooth motion of one cycle (within a tenth of the solver's step cap per joint); after
@@ -52,142 +38,6 @@ JointVector warm_start(const Mechanism& mech, const TrackOptions& opts, const Jo
 }
 
 }  // namespace
-
-ControllerModel make_controller_model(const Device& device, const Mechanism& mechanism,
-                                      const ControllerSettings& s) {
-  ControllerModel m;
-  require_non_negative("length_scale", s.length_scale);
-  m.length_scale = s.length_scale > 0.0 ? s.length_scale : mechanism.length_scale();
-  const double L = m.length_scale;
-  const Vector6 unit = scaled_ones(L);
-
-  // task axes along which the passive joints never move (checked at the device's home)
-  Pose T;
-  Jacobian J;
-  device.forward_jacobian(device.home().data(), T, J);
-  for (int k = 0; k < 6; ++k) {
-    bool moved = false;
-    for (int i = 0; i < device.dof(); ++i) {
-      if (!device.actuated(i) && std::abs(J(k, i)) > 1e-9) moved = true;
-    }
-    m.renderable[static_cast<size_t>(k)] = !moved;
-  }
-  Vector6 mask;
-  for (int k = 0; k < 6; ++k) mask[k] = m.renderable[static_cast<size_t>(k)] ? 1.0 : 0.0;
-
-  // W_A and W_e on the axes the device renders, W_e* on the rest (eq. 25); gains on the
-  // axes it cannot render are zero, so the null-space filter does not turn unrenderable
-  // moments into forces along the mechanism's motion (docs/theory.md, section 5)
-  const Vector6 powered = mask.cwiseProduct(unit);
-  const Vector6 unpowered = (Vector6::Ones() - mask).cwiseProduct(unit);
-  m.w_a = s.w_a ? checked_weights("w_a", *s.w_a) : powered;
-  m.w_e = s.w_e ? checked_weights("w_e", *s.w_e) : powered;
-  m.w_e_star = s.w_e_star ? checked_weights("w_e_star", *s.w_e_star) : unpowered;
-  if (m.w_e.isZero(0.0)) throw std::invalid_argument("w_e: expected at least one weight > 0, got all zero");
-  if (m.w_a.isZero(0.0)) throw std::invalid_argument("w_a: expected at least one weight > 0, got all zero");
-  require_non_negative("secondary_weight", s.secondary_weight);
-  m.w_a_support = static_cast<int>((m.w_a.array() > 0.0).count());
-  m.w_e_effective = m.w_e + s.secondary_weight * unit;
-  m.w_e_star_effective = m.w_e_star + s.secondary_weight * unit;
-  const auto inverse = [](const Vector6& w) {
-    return (w.array() > 0.0).all() ? Vector6(w.cwiseInverse()) : Vector6(Vector6::Zero());
-  };
-  m.w_e_inverse = inverse(m.w_e_effective);
-  m.w_e_star_inverse = inverse(m.w_e_star_effective);
-
-  const double k = device.stiffness(), b = device.damping();
-  m.kp = s.kp ? checked_weights("kp", *s.kp) : Vector6(k * powered);
-  m.kv = s.kv ? checked_weights("kv", *s.kv) : Vector6(b * powered);
-
-  m.law = s.law;
-  switch (s.law) {
-    case ControlLaw::kAuto:
-      m.under_actuated_term = !device.fully_actuated() && !m.w_e_star.isZero(0.0);
-      break;
-    case ControlLaw::kNullSpace:
-      m.under_actuated_term = false;
-      break;
-    case ControlLaw::kUnderActuated:
-      if (m.w_e_star.isZero(0.0)) {
-        throw std::invalid_argument(
-            "w_e_star: law 'under_actuated' needs at least one weight > 0, got all zero (the "
-            "device " + device.name() + " has no un-powered task axis by default)");
-      }
-      m.under_actuated_term = true;
-      break;
-    default:
-      throw std::invalid_argument("law: expected auto, null_space or under_actuated");
-  }
-  if (s.error_velocity != ErrorVelocity::kRelative && s.error_velocity != ErrorVelocity::kHandle) {
-    throw std::invalid_argument("error_velocity: expected relative or handle");
-  }
-  m.error_velocity = s.error_velocity;
-  // W_A = c (W_e + secondary_weight U): every ratio within a few rounding errors of one c
-  double c = 0.0;
-  bool proportional = true;
-  for (int i = 0; i < 6; ++i) {
-    const double a = m.w_a[i], e = m.w_e_effective[i];
-    if (a == 0.0 || e == 0.0) {
-      proportional = proportional && a == e;
-    } else if (c == 0.0) {
-      c = a / e;
-    } else {
-      proportional = proportional && std::abs(a - c * e) <= 8.0 * kEpsilon * a;
-    }
-  }
-  m.w_a_shares_rate = proportional && m.error_velocity == ErrorVelocity::kRelative;
-
-  require_positive("period_s", s.period_s);
-  require_non_negative("ramp_time_s", s.ramp_time_s);
-  require_non_negative("watchdog_s", s.watchdog_s);
-  m.period_s = s.period_s;
-  m.ramp_cycles = std::max(1L, static_cast<long>(std::llround(s.ramp_time_s / s.period_s)));
-  m.watchdog_s = s.watchdog_s;
-
-  require_non_negative("max_force", s.max_force);
-  require_non_negative("max_torque", s.max_torque);
-  m.max_force = s.max_force > 0.0 ? std::min(s.max_force, device.max_force()) : device.max_force();
-  m.max_torque =
-      s.max_torque > 0.0 ? std::min(s.max_torque, device.max_torque()) : device.max_torque();
-
-  if (s.max_iterations < 1 || s.max_iterations_initial < 1) {
-    std::ostringstream os;
-    os << "max_iterations: expected >= 1, got " << s.max_iterations << " (initial "
-       << s.max_iterations_initial << ")";
-    throw std::invalid_argument(os.str());
-  }
-  m.track.max_iterations = s.max_iterations;
-  m.track_initial.max_iterations = s.max_iterations_initial;
-
-  require_non_negative("range_margin_rad", s.range_margin_rad);
-  require_non_negative("range_margin_m", s.range_margin_m);
-  const int n = device.dof();
-  if (s.passivity != Passivity::kOff && s.passivity != Passivity::kEnergyTank) {
-    throw std::invalid_argument("passivity: expected off or energy_tank");
-  }
-  if (!(s.passivity_fade_j > 0.0) || !std::isfinite(s.passivity_fade_j)) {
-    std::ostringstream os;
-    os << "passivity_fade_j: expected a finite number > 0 [J], got " << s.passivity_fade_j;
-    throw std::invalid_argument(os.str());
-  }
-  m.passivity_fade = s.passivity_fade_j;
-  if (!(s.passivity_max_energy_j >= 0.0)) {
-    std::ostringstream os;
-    os << "passivity_max_energy_j: expected >= 0 [J] (inf: no cap), got " << s.passivity_max_energy_j;
-    throw std::invalid_argument(os.str());
-  }
-  m.passivity = s.passivity;
-  m.passivity_max_energy = s.passivity_max_energy_j;
-  m.q_min.resize(n);
-  m.q_max.resize(n);
-  for (int i = 0; i < n; ++i) {
-    const double margin =
-        device.joint_type(i) == JointType::kRevolute ? s.range_margin_rad : s.range_margin_m;
-    m.q_min[i] = device.lower()[i] - margin;
-    m.q_max[i] = device.upper()[i] + margin;
-  }
-  return m;
-}
 
 // --- the cycle's stages, in the order step() runs them ---------------------------------
 

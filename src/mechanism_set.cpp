@@ -20,17 +20,7 @@ MechanismSet::MechanismSet(std::shared_ptr<const Device> device, int capacity,
     os << "capacity: expected 1 to " << kMaxSetMembers << " members, got " << capacity;
     throw std::invalid_argument(os.str());
   }
-  require_positive("snap_distance", settings.snap_distance);
-  require_finite("release_distance", settings.release_distance);
-  if (!(settings.release_distance >= settings.snap_distance)) {
-    std::ostringstream os;
-    os << "release_distance: expected at least snap_distance = " << settings.snap_distance
-       << " m (the hysteresis), got " << settings.release_distance;
-    throw std::invalid_argument(os.str());
-  }
-  require_positive("force_rate", settings.force_rate);
-  require_positive("moment_rate", settings.moment_rate);
-  require_positive("period_s", settings.period_s);
+  check_settings(settings);
   members_.reserve(static_cast<size_t>(capacity));
   outputs_.resize(static_cast<size_t>(capacity));
 }

@@ -16,35 +16,10 @@
 #include "virtmech/device.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/mechanism.hpp"
+#include "virtmech/settings.hpp"
 #include "virtmech/track.hpp"
 
 namespace virtmech {
-
-/// Which control law the cycle evaluates.
-enum class ControlLaw : int {
-  kAuto = 0,           //!< eq. 26 when the device has un-powered joints, else eq. 11
-  kNullSpace = 1,      //!< eq. 11 (eq. 9 filter only): f = N(W_A)(Kp e + Kv e_dot)
-  kUnderActuated = 2,  //!< eq. 26: adds P(W_A)(Kp e* + Kv e*_dot)
-};
-
-/// How the error velocity is formed from the joint velocities.
-enum class ErrorVelocity : int {
-  /// e_dot = J_V theta_dot - J_R dq, with theta_dot the placement's first-order rate
-  /// (J_V^T W J_V)^+ J_V^T W J_R dq: the part of the handle's velocity the mechanism does
-  /// not follow. Default.
-  kRelative = 0,
-  /// e_dot = -J_R dq: the paper's eq. 10 (desired velocity zero).
-  kHandle = 1,
-};
-
-/// Whether the cycle keeps the rendering passive (docs/theory.md, "Passivity").
-enum class Passivity : int {
-  kOff = 0,  //!< the laws as written: the motors may do net work (the paper's Fig. 11)
-  /// An energy tank filled by a passivity observer at the motors' port (Hannaford & Ryu
-  /// 2002): eq. 26's range term, the part of the law that does net work, is rendered only
-  /// as long as the user has put in the energy it gives. Default.
-  kEnergyTank = 1,
-};
 
 /// Status bits of a cycle. Bits below kFaultMask inform; a fault bit means zero torque.
 namespace status {
@@ -63,39 +38,24 @@ constexpr std::uint32_t kFaultOutOfRange = 1u << 11;      //!< q beyond the join
 constexpr std::uint32_t kFaultMask = 0xFF00u;
 }  // namespace status
 
-/// User settings; unset optionals take the documented defaults (docs/theory.md).
+/// User settings, one member per row of VM_CONTROLLER_SETTINGS
+/// (include/virtmech/settings_table.h: each row's unit, default, range and meaning); unset
+/// optionals take the defaults of docs/theory.md, derived from the device and the mechanism.
 struct ControllerSettings {
-  // U = [1 1 1 L^2 L^2 L^2]; "powered" = U on the task axes the device renders, 0 elsewhere
-  std::optional<Vector6> kp;        //!< stiffness [N/m x3; N·m/rad x3]; default k * powered
-  std::optional<Vector6> kv;        //!< damping [N·s/m x3; N·m·s/rad x3]; default b * powered
-  std::optional<Vector6> w_a;       //!< filter weights W_A; default powered
-  std::optional<Vector6> w_e;       //!< nearest-placement weights W_e; default powered
-  std::optional<Vector6> w_e_star;  //!< un-powered placement weights W_e*; default U - powered
-  double length_scale = 0.0;        //!< L [m]; 0 takes the mechanism's
-  ControlLaw law = ControlLaw::kAuto;
-  ErrorVelocity error_velocity = ErrorVelocity::kRelative;
-  double period_s = 1e-3;           //!< servo period [s]
-  double ramp_time_s = 0.25;        //!< force ramp-in after start and after a fault [s]
-  double watchdog_s = 0.0;          //!< largest gap between timed cycles [s]; 0: off
-  double max_force = 0.0;           //!< force limit [N]; 0 takes the device's
-  double max_torque = 0.0;          //!< moment limit [N·m]; 0 takes the device's
-  int max_iterations = 10;          //!< placement iterations per cycle
-  int max_iterations_initial = 100; //!< placement iterations on the first cycle
-  /// Weight of U added to W_e and to W_e* so that directions a placement's weights leave
-  /// undetermined are settled by the full pose error instead of drifting.
-  double secondary_weight = 1e-6;
-  /// q may leave the device's joint range by this much before the cycle faults
-  /// (fault_out_of_range): revolute joints [rad], prismatic joints [m].
-  double range_margin_rad = 5.0 * 3.14159265358979323846 / 180.0;
-  double range_margin_m = 0.005;
-  Passivity passivity = Passivity::kEnergyTank;
-  /// The most energy the tank holds beyond what the law's springs store [J]: what the
-  /// rendering absorbed beyond it (damping, say) is not given back. inf: no cap.
-  double passivity_max_energy_j = 0.001;
-  /// The range term fades out linearly as the tank falls from 0 to -passivity_fade_j [J]:
-  /// the most the motors give beyond what the user put in
-  double passivity_fade_j = 5e-5;
+#define VM_SETTING_VEC6(name, unit, doc) std::optional<Vector6> name;
+#define VM_SETTING_REAL(name, value, min, max, flags, unit, doc) double name = value;
+#define VM_SETTING_INT(name, value, min, max, unit, doc) int name = value;
+#define VM_SETTING_ENUM(name, Type, value, doc) Type name = static_cast<Type>(value);
+  VM_CONTROLLER_SETTINGS(VM_SETTING_VEC6, VM_SETTING_REAL, VM_SETTING_INT, VM_SETTING_ENUM)
+#undef VM_SETTING_VEC6
+#undef VM_SETTING_REAL
+#undef VM_SETTING_INT
+#undef VM_SETTING_ENUM
 };
+
+/// Checks every setting against its row's range (std::invalid_argument naming the setting,
+/// its range and the value). The Controller's constructor runs it first.
+void check_settings(const ControllerSettings& settings);
 
 /// The validated configuration with every default resolved.
 struct ControllerModel {

@@ -22,13 +22,18 @@ namespace virtmech {
 /// Largest capacity of a MechanismSet (fixed-size diagnostics).
 constexpr int kMaxSetMembers = 16;
 
+/// A set's settings, one member per row of VM_SET_SETTINGS
+/// (include/virtmech/settings_table.h: units, defaults, ranges); release_distance must be
+/// at least snap_distance (the hysteresis).
 struct MechanismSetSettings {
-  double snap_distance = 0.005;     //!< a member engages within this distance [m]
-  double release_distance = 0.010;  //!< ... and lets go beyond this one [m] (> snap)
-  double force_rate = 100.0;        //!< largest change of the force while switching [N/s]
-  double moment_rate = 1.0;         //!< largest change of the moment while switching [N·m/s]
-  double period_s = 1e-3;           //!< servo period [s], for the rates
+#define VM_SETTING_REAL(name, value, min, max, flags, unit, doc) double name = value;
+  VM_SET_SETTINGS(VM_SETTING_REAL)
+#undef VM_SETTING_REAL
 };
+
+/// Checks every setting against its row's range and the hysteresis (std::invalid_argument
+/// naming the setting).
+void check_settings(const MechanismSetSettings& settings);
 
 /// Everything one cycle of a set reports. Fixed capacity: copying never allocates.
 struct MechanismSetOutput {
@@ -37,10 +42,15 @@ struct MechanismSetOutput {
   CycleOutput cycle;
   int active = -1;  //!< the member rendered, -1 for none
   int size = 0;     //!< members in the set
-  /// Each member's distance from the handle [m]: the larger position error of its two
-  /// placements (the un-powered one is where the user's tip is on an under-actuated
-  /// device); for a unilateral member out of contact its tip's height, in contact 0. NaN on
-  /// a faulted cycle (which engages no member and keeps the engaged one).
+  /// Each member's engagement distance from the handle [m], what the set switches on: the
+  /// larger position error of its two placements (the un-powered one is where the user's
+  /// tip is on an under-actuated device); for a unilateral member out of contact its tip's
+  /// height, in contact 0. It is read off the placements every member makes each cycle
+  /// anyway (no search of its own, a bounded cost), and is not the simulation log's `dist`
+  /// (the kind's geometric measure, virtmech::distance): the two agree where a placement
+  /// reaches its optimum, and differ where the rotational weights pull the placement off
+  /// the point's nearest one. NaN on a faulted cycle (which engages no member and keeps the
+  /// engaged one).
   std::array<double, kMaxSetMembers> distance{};
   std::uint32_t contact = 0;  //!< bit i: member i is unilateral and in contact
   /// The output is moving from one member's force to another's, or back from a fault.
@@ -80,6 +90,7 @@ class MechanismSet {
   int size() const noexcept { return static_cast<int>(members_.size()); }
   int capacity() const noexcept { return capacity_; }
   const Device& device() const noexcept { return *device_; }
+  std::shared_ptr<const Device> device_ptr() const noexcept { return device_; }
   const Controller& member(int i) const { return *members_.at(static_cast<size_t>(i)); }
   const MechanismSetSettings& settings() const noexcept { return settings_; }
   int active() const noexcept { return active_; }

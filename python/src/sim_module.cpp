@@ -1,28 +1,25 @@
 // virtmech._sim: the simulation's servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp)
-// for virtmech.sim. Linked with MuJoCo's C library from the mujoco wheel; mjModel and mjData
-// come from the mujoco package's MjModel and MjData (their `_address`).
+// for virtmech.sim, and the log's table of columns (log_table.hpp). Linked with MuJoCo's C
+// library from the mujoco wheel; mjModel and mjData come from the mujoco package's MjModel
+// and MjData (their `_address`).
 #include <mujoco/mujoco.h>
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
 #include <cstdint>
 #include <memory>
-#include <stdexcept>
 #include <string>
-#include <utility>
-#include <vector>
 
 #include "virtmech/sim/servo_loop.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
-using virtmech::Controller;
 using virtmech::Device;
-using virtmech::MechanismSet;
 using namespace virtmech::sim;
 
 namespace {
@@ -30,67 +27,25 @@ namespace {
 using F64 = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 using CF64 = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 
-std::string shape(const CF64& a) {
-  std::string s = "(";
-  for (size_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
-  return s + (a.ndim() == 1 ? ",)" : ")");
-}
-
-void require_shape(const char* name, const CF64& a, size_t rows, size_t cols) {
-  const bool ok = cols == 0 ? (a.ndim() == 1 && a.shape(0) == rows)
-                            : (a.ndim() == 2 && a.shape(0) == rows && a.shape(1) == cols);
-  if (!ok) {
-    throw nb::value_error((std::string(name) + ": expected shape (" + std::to_string(rows) +
-                           (cols == 0 ? ",)" : ", " + std::to_string(cols) + ")") + ", got " +
-                           shape(a))
-                              .c_str());
-  }
-}
-
-// A layout from {field: column}: the fields are the struct's members (by name), the columns
-// the caller's table's (virtmech.sim.inner)
+// a layout from {field: column}, each field set through its property (an unknown one named)
 template <class Layout>
-Layout layout(const char* what, const nb::dict& d,
-              const std::vector<std::pair<const char*, int Layout::*>>& members) {
+Layout layout_from(const char* what, const nb::dict& d) {
   Layout out;
+  nb::object target = nb::cast(&out, nb::rv_policy::reference);
   for (auto [key, value] : d) {
-    const std::string k = nb::cast<std::string>(key);
-    bool known = false;
-    for (const auto& [name, member] : members) {
-      if (k == name) {
-        out.*member = nb::cast<int>(value);
-        known = true;
-      }
+    if (!nb::hasattr(target, key)) {
+      throw nb::value_error((std::string(what) + ": unknown field " + nb::cast<std::string>(key)).c_str());
     }
-    if (!known) throw nb::value_error((std::string(what) + ": unknown field " + k).c_str());
+    nb::setattr(target, key, value);
   }
   return out;
 }
 
-PlanLayout plan_layout(const nb::dict& d) {
-  using L = PlanLayout;
-  return layout<L>("plan_layout", d,
-                   {{"columns", &L::columns}, {"anchor_p", &L::anchor_p},
-                    {"anchor_R", &L::anchor_R}, {"anchor_v", &L::anchor_v},
-                    {"anchor_w", &L::anchor_w}, {"k_t", &L::k_t}, {"b_t", &L::b_t},
-                    {"k_r", &L::k_r}, {"b_r", &L::b_r}, {"force", &L::force},
-                    {"moment", &L::moment}, {"force_in_handle", &L::force_in_handle},
-                    {"hand_attached", &L::hand_attached}, {"segment", &L::segment}});
-}
-
-LogLayout log_layout(const nb::dict& d) {
-  using L = LogLayout;
-  return layout<L>(
-      "log_layout", d,
-      {{"columns", &L::columns}, {"t", &L::t}, {"q", &L::q}, {"dq", &L::dq}, {"qm", &L::qm},
-       {"dqm", &L::dqm}, {"handle_p", &L::handle_p}, {"stylus", &L::stylus},
-       {"twist", &L::twist}, {"wrench", &L::wrench}, {"tau", &L::tau},
-       {"tau_motor", &L::tau_motor}, {"status", &L::status}, {"ramp", &L::ramp},
-       {"iterations", &L::iterations}, {"iterations_star", &L::iterations_star},
-       {"theta", &L::theta}, {"theta_star", &L::theta_star}, {"e", &L::e}, {"e_dot", &L::e_dot},
-       {"e_star", &L::e_star}, {"e_star_dot", &L::e_star_dot}, {"f_null", &L::f_null},
-       {"f_range", &L::f_range}, {"hand_wrench", &L::hand_wrench}, {"anchor", &L::anchor},
-       {"segment", &L::segment}, {"member", &L::member}});
+void require_rows(const char* name, size_t ndim, size_t rows, size_t got_rows, size_t cols, size_t got_cols) {
+  if (ndim != (cols ? 2u : 1u) || got_rows != rows || (cols && got_cols != cols)) {
+    throw nb::value_error((std::string(name) + ": expected shape (" + std::to_string(rows) +
+                           (cols ? ", " + std::to_string(cols) + ")" : ",)")).c_str());
+  }
 }
 
 // A simulated device driven from outside the simulation (virtmech ros2-sim): the loop's
@@ -109,66 +64,27 @@ struct HeldTorque final : ExternalController {
 struct PyServoLoop {
   template <typename Renderer>  // a Controller or a MechanismSet
   PyServoLoop(Renderer& renderer, std::uintptr_t model, std::uintptr_t data,
-              CF64 coupling_inv, CF64 coupling_offset, std::vector<int> actuated, int substeps,
-              double period_s, std::vector<int> comp_bodies, std::vector<double> comp_masses,
-              CF64 gravity, double quantum, int delay_cycles, double velocity_alpha,
-              int hand_body, const nb::dict& plan, const nb::dict& log)
+              const LoopSettings& settings, const nb::dict& plan, const nb::dict& log)
       : loop(renderer, reinterpret_cast<mjModel*>(model), reinterpret_cast<mjData*>(data),
-             settings(renderer.device().dof(), coupling_inv, coupling_offset,
-                      std::move(actuated), substeps, period_s, std::move(comp_bodies),
-                      std::move(comp_masses), gravity, quantum, delay_cycles, velocity_alpha,
-                      hand_body),
-             plan_layout(plan), log_layout(log)) {}
+             settings, layout_from<PlanLayout>("plan_layout", plan),
+             layout_from<LogLayout>("log_layout", log)) {}
 
-  PyServoLoop(HeldTorque& held, std::uintptr_t model, std::uintptr_t data, CF64 coupling_inv,
-              CF64 coupling_offset, std::vector<int> actuated, int substeps, double period_s,
-              std::vector<int> comp_bodies, std::vector<double> comp_masses, CF64 gravity,
-              double quantum, int delay_cycles, double velocity_alpha, int hand_body,
-              const nb::dict& plan, const nb::dict& log)
+  PyServoLoop(HeldTorque& held, std::uintptr_t model, std::uintptr_t data,
+              const LoopSettings& settings, const nb::dict& plan, const nb::dict& log)
       : loop(held.device(), held, reinterpret_cast<mjModel*>(model),
-             reinterpret_cast<mjData*>(data),
-             settings(held.device().dof(), coupling_inv, coupling_offset, std::move(actuated),
-                      substeps, period_s, std::move(comp_bodies), std::move(comp_masses),
-                      gravity, quantum, delay_cycles, velocity_alpha, hand_body),
-             plan_layout(plan), log_layout(log)) {}
-
-  static LoopSettings settings(int n, const CF64& coupling_inv, const CF64& coupling_offset,
-                               std::vector<int> actuated, int substeps, double period_s,
-                               std::vector<int> comp_bodies, std::vector<double> comp_masses,
-                               const CF64& gravity, double quantum, int delay_cycles,
-                               double velocity_alpha, int hand_body) {
-    const auto un = static_cast<size_t>(n);
-    require_shape("coupling_inv", coupling_inv, un, un);
-    require_shape("coupling_offset", coupling_offset, un, 0);
-    require_shape("gravity", gravity, 3, 0);
-    LoopSettings s;
-    s.coupling_inv =
-        Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(coupling_inv.data(), n, n);
-    s.coupling_offset = Eigen::Map<const Eigen::VectorXd>(coupling_offset.data(), n);
-    s.actuated = std::move(actuated);
-    s.substeps = substeps;
-    s.period_s = period_s;
-    s.comp_bodies = std::move(comp_bodies);
-    s.comp_masses = std::move(comp_masses);
-    s.gravity = Eigen::Map<const Eigen::Vector3d>(gravity.data());
-    s.quantum = quantum;
-    s.delay_cycles = delay_cycles;
-    s.velocity_alpha = velocity_alpha;
-    s.hand_body = hand_body;
-    return s;
-  }
+             reinterpret_cast<mjData*>(data), settings,
+             layout_from<PlanLayout>("plan_layout", plan),
+             layout_from<LogLayout>("log_layout", log)) {}
 
   void run(long k0, CF64 plan, CF64 noise, CF64 dropout, F64 log) {
     const size_t rows = plan.ndim() == 2 ? plan.shape(0) : 0;
-    require_shape("plan", plan, rows, size_t(loop.plan_layout().columns));
-    require_shape("noise", noise, rows, size_t(loop.dof()));
-    require_shape("dropout", dropout, rows, 0);
-    const auto L = size_t(loop.log_layout().columns);
-    if (!(log.ndim() == 2 && log.shape(0) == rows && log.shape(1) == L)) {
-      throw nb::value_error(("log: expected shape (" + std::to_string(rows) + ", " +
-                             std::to_string(L) + ")")
-                                .c_str());
-    }
+    require_rows("plan", plan.ndim(), rows, rows, size_t(loop.plan_layout().columns),
+                 plan.ndim() == 2 ? plan.shape(1) : 0);
+    require_rows("noise", noise.ndim(), rows, noise.shape(0), size_t(loop.dof()),
+                 noise.ndim() == 2 ? noise.shape(1) : 0);
+    require_rows("dropout", dropout.ndim(), rows, dropout.shape(0), 0, 0);
+    require_rows("log", log.ndim(), rows, log.shape(0), size_t(loop.log_layout().columns),
+                 log.ndim() == 2 ? log.shape(1) : 0);
     nb::gil_scoped_release release;
     loop.run(k0, rows, plan.data(), noise.data(), dropout.data(), log.data());
   }
@@ -176,27 +92,58 @@ struct PyServoLoop {
   ServoLoop loop;
 };
 
-// ServoLoop(renderer, ...) for a Controller or a MechanismSet: the same arguments, the
-// renderer kept alive by the loop.
-template <typename Renderer>
-void def_init(nb::class_<PyServoLoop>& c, const char* doc) {
-  c.def(nb::init<Renderer&, std::uintptr_t, std::uintptr_t, CF64, CF64, std::vector<int>, int,
-                 double, std::vector<int>, std::vector<double>, CF64, double, int, double, int,
-                 const nb::dict&, const nb::dict&>(),
-        "controller"_a, "model"_a, "data"_a, "coupling_inv"_a, "coupling_offset"_a,
-        "actuated"_a, "substeps"_a, "period_s"_a, "comp_bodies"_a, "comp_masses"_a,
-        "gravity"_a, "quantum"_a, "delay_cycles"_a, "velocity_alpha"_a, "hand_body"_a,
-        "plan_layout"_a, "log_layout"_a, nb::keep_alive<1, 2>(), doc);
-}
-
 }  // namespace
 
 NB_MODULE(_sim, m) {
   m.doc() = "virtmech's simulation loop (C++, MuJoCo's C API); internal: use virtmech.sim.run.";
   m.attr("MUJOCO_VERSION") = mjVERSION_HEADER;  // the MuJoCo headers it was built with
   m.def("mujoco_library_version", &mj_version, "mj_version() of the MuJoCo library loaded.");
-  nb::class_<PyServoLoop> loop(m, "ServoLoop",
-                               "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).");
+
+  nb::list table;  // the log's columns (log_table.hpp)
+  for (const LogField& f : log_fields()) {
+    nb::dict row;
+    row["field"] = f.field;
+    row["first"] = log_names(f, 1, 1).front();
+    row["derived"] = f.derived;
+    row["units"] = log_units(f);
+    table.append(row);
+  }
+  m.attr("LOG_TABLE") = table;
+  m.def("log_columns", &log_column_names, "n"_a, "m"_a,
+        "The log's column names for a device of n joints and a mechanism of m.");
+
+  nb::class_<PlanLayout> plan(m, "PlanLayout", "Column of each field of a hand-plan row.");
+  plan.def(nb::init<>());
+  for (auto [name, member] : {std::pair{"columns", &PlanLayout::columns}, {"anchor_p", &PlanLayout::anchor_p},
+                              {"anchor_R", &PlanLayout::anchor_R}, {"anchor_v", &PlanLayout::anchor_v},
+                              {"anchor_w", &PlanLayout::anchor_w}, {"k_t", &PlanLayout::k_t},
+                              {"b_t", &PlanLayout::b_t}, {"k_r", &PlanLayout::k_r}, {"b_r", &PlanLayout::b_r},
+                              {"force", &PlanLayout::force}, {"moment", &PlanLayout::moment},
+                              {"force_in_handle", &PlanLayout::force_in_handle},
+                              {"hand_attached", &PlanLayout::hand_attached}, {"segment", &PlanLayout::segment}}) {
+    plan.def_rw(name, member);
+  }
+  nb::class_<LogLayout> log(m, "LogLayout", "Column of each field of a log row (LOG_TABLE).");
+  log.def(nb::init<>()).def_rw("columns", &LogLayout::columns);
+#define VM_LOG_MEMBER(field, width, names, units, origin) log.def_rw(#field, &LogLayout::field);
+  VM_LOG_TABLE(VM_LOG_MEMBER)
+#undef VM_LOG_MEMBER
+
+  nb::class_<LoopSettings>(m, "LoopSettings", "How the device sits in the MuJoCo model, and the simulated driver.")
+      .def(nb::init<>())
+      .def_rw("coupling_inv", &LoopSettings::coupling_inv, "Cinv (n, n): device joints q = Cinv (qpos - c0).")
+      .def_rw("coupling_offset", &LoopSettings::coupling_offset, "c0 (n,).")
+      .def_rw("actuated", &LoopSettings::actuated, "Device joint of each MuJoCo actuator, in order.")
+      .def_rw("substeps", &LoopSettings::substeps, "Physics steps per control cycle.")
+      .def_rw("period_s", &LoopSettings::period_s, "Control period T [s].")
+      .def_rw("comp_bodies", &LoopSettings::comp_bodies, "Bodies whose weight the motors compensate.")
+      .def_rw("comp_masses", &LoopSettings::comp_masses, "Their masses [kg].")
+      .def_rw("gravity", &LoopSettings::gravity, "Gravity for the compensation (3,) [m/s^2].")
+      .def_rw("quantum", &LoopSettings::quantum, "Encoder step [rad]; 0: none.")
+      .def_rw("delay_cycles", &LoopSettings::delay_cycles, "Sensor delay [cycles].")
+      .def_rw("velocity_alpha", &LoopSettings::velocity_alpha, "Velocity low-pass: dqf += alpha (diff - dqf).")
+      .def_rw("hand_body", &LoopSettings::hand_body, "The hand's body (mass zeroed while released); -1: none.");
+
   nb::class_<HeldTorque>(m, "HeldTorque",
                          "The joint torques (dof,) [N·m or N] a loop over it applies, as last "
                          "set: a simulated device driven from outside (virtmech ros2-sim).")
@@ -204,25 +151,30 @@ NB_MODULE(_sim, m) {
       .def_prop_rw(
           "torque", [](const HeldTorque& h) { return h.torque; },
           [](HeldTorque& h, CF64 tau) {
-            require_shape("torque", tau, size_t(h.torque.size()), 0);
+            require_rows("torque", tau.ndim(), size_t(h.torque.size()), tau.shape(0), 0, 0);
             h.torque = Eigen::Map<const Eigen::VectorXd>(tau.data(), h.torque.size());
           },
           "The held torque (dof,): set it between the loop's runs.");
-  def_init<HeldTorque>(loop, "The loop applying a HeldTorque's torque (controller: it).");
-  def_init<MechanismSet>(loop, "The loop rendering a MechanismSet (controller: the set).");
-  def_init<Controller>(
-      loop,
-      "model, data: the addresses of an mjModel and its mjData (MjModel._address); the "
-      "caller keeps them alive. hand_body: the hand's body id (-1: none), whose mass the "
-      "loop zeroes while the plan's hand_attached is 0. plan_layout, log_layout: "
-      "{field: column}.");
-  loop
+
+  nb::class_<PyServoLoop> loop(m, "ServoLoop", "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).");
+  loop.def(nb::init<HeldTorque&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
+                    const nb::dict&, const nb::dict&>(),
+           "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
+           nb::keep_alive<1, 2>(), "The loop applying a HeldTorque's torque (controller: it).")
+      .def(nb::init<virtmech::MechanismSet&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
+                    const nb::dict&, const nb::dict&>(),
+           "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
+           nb::keep_alive<1, 2>(), "The loop rendering a MechanismSet (controller: the set).")
+      .def(nb::init<virtmech::Controller&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
+                    const nb::dict&, const nb::dict&>(),
+           "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
+           nb::keep_alive<1, 2>(),
+           "model, data: the addresses of an mjModel and its mjData (MjModel._address); the "
+           "caller keeps them alive. plan_layout, log_layout: {field: column}.")
       .def_prop_ro("log_columns", [](const PyServoLoop& s) { return s.loop.log_layout().columns; })
       .def_prop_ro("hand_attached", [](const PyServoLoop& s) { return s.loop.hand_attached(); })
-      .def_prop_ro("control_time_s",
-                   [](const PyServoLoop& s) { return s.loop.control_time_s(); },
+      .def_prop_ro("control_time_s", [](const PyServoLoop& s) { return s.loop.control_time_s(); },
                    "wall time in the controller's (or set's) step since construction [s]")
-      .def("run", &PyServoLoop::run, "k0"_a, "plan"_a, "noise"_a, "dropout"_a,
-           "log"_a.noconvert(),
+      .def("run", &PyServoLoop::run, "k0"_a, "plan"_a, "noise"_a, "dropout"_a, "log"_a.noconvert(),
            "Runs plan.shape[0] control cycles from cycle k0, writing one log row each.");
 }

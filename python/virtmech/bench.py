@@ -405,40 +405,7 @@ def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CY
             say(*_head(report), *_case_head())
         elif not harness["allocation_counter"].get("self_test_passed", True):
             report["allocation_counter"]["self_test_passed"] = False
-        h = harness["cases"][0]
-        case = make_case(name)
-        py = python_step(case, python_cycles)
-        row: dict[str, Any] = {
-            "name": name,
-            "median_us": float(h["median_us"]), "p99_us": float(h["p99_us"]),
-            "p999_us": float(h["p999_us"]), "max_us": float(h["max_us"]),
-            "mean_us": float(h["mean_us"]), "cycles": h["cycles"],
-            "allocations": int(h["allocations"]),
-            "mean_iterations": h["mean_iterations"] + h["mean_iterations_star"],
-            "numpy_median_us": None, "speedup_vs_numpy": None,
-            "cpp_median_numpy_cycles_us": None, "numpy_cycles": 0,
-            "numpy_max_torque_difference": None,
-            "python_step_median_us": py["median_us"],
-            "python_overhead_us": py["overhead_us"],
-            "python_cycles": python_cycles,
-        }
-        if reference is not None:
-            # the reference runs from a fresh start through the last REFERENCE_WARMUP cycles
-            # before the timed ones (its torque ramp is over by then; its placements do not
-            # depend on the history), then over the cycles Python timed
-            period = case.controller.model["period_s"]
-            q_w, dq_w = case.joint_state(np.arange(WARMUP - REFERENCE_WARMUP, WARMUP), period)
-            m = min(numpy_cycles, python_cycles)
-            nb = numpy_reference(case, reference, q_w, dq_w, py["q"][:m], py["dq"][:m])
-            # side by side: the C++ cycle's own time over the very cycles NumPy ran (a case's
-            # cost varies along its trajectory, so medians over other spans would not compare)
-            cpp_same = float(np.median(py["own_us"][:m]))
-            row.update({
-                "numpy_median_us": nb["median_us"],
-                "speedup_vs_numpy": nb["median_us"] / cpp_same if cpp_same > 0 else None,
-                "cpp_median_numpy_cycles_us": cpp_same, "numpy_cycles": m,
-                "numpy_max_torque_difference": nb["torque_difference"],
-            })
+        row = _case_row(name, harness["cases"][0], python_cycles, numpy_cycles, reference)
         out_cases.append(row)
         say(_case_line(row))
     if numpy_note:
@@ -453,6 +420,47 @@ def collect(cycles: int = DEFAULT_CYCLES, python_cycles: int = DEFAULT_PYTHON_CY
         report["simulation_note"] = note
     say(*_simulation_notes(report))
     return report
+
+
+def _case_row(name: str, h: dict, python_cycles: int, numpy_cycles: int,
+              reference: Any) -> dict[str, Any]:
+    """One case's figures: the harness's (h), Python's step over the same trajectory, and,
+    given a reference, the NumPy reference cycle's beside the core's."""
+    case = make_case(name)
+    py = python_step(case, python_cycles)
+    row: dict[str, Any] = {
+        "name": name,
+        "median_us": float(h["median_us"]), "p99_us": float(h["p99_us"]),
+        "p999_us": float(h["p999_us"]), "max_us": float(h["max_us"]),
+        "mean_us": float(h["mean_us"]), "cycles": h["cycles"],
+        "allocations": int(h["allocations"]),
+        "mean_iterations": h["mean_iterations"] + h["mean_iterations_star"],
+        "numpy_median_us": None, "speedup_vs_numpy": None,
+        "cpp_median_numpy_cycles_us": None, "numpy_cycles": 0,
+        "numpy_max_torque_difference": None,
+        "python_step_median_us": py["median_us"],
+        "python_overhead_us": py["overhead_us"],
+        "python_cycles": python_cycles,
+    }
+    if reference is None:
+        return row
+    # the reference runs from a fresh start through the last REFERENCE_WARMUP cycles before
+    # the timed ones (its torque ramp is over by then; its placements do not depend on the
+    # history), then over the cycles Python timed
+    period = case.controller.model["period_s"]
+    q_w, dq_w = case.joint_state(np.arange(WARMUP - REFERENCE_WARMUP, WARMUP), period)
+    m = min(numpy_cycles, python_cycles)
+    nb = numpy_reference(case, reference, q_w, dq_w, py["q"][:m], py["dq"][:m])
+    # side by side: the C++ cycle's own time over the very cycles NumPy ran (a case's cost
+    # varies along its trajectory, so medians over other spans would not compare)
+    cpp_same = float(np.median(py["own_us"][:m]))
+    row.update({
+        "numpy_median_us": nb["median_us"],
+        "speedup_vs_numpy": nb["median_us"] / cpp_same if cpp_same > 0 else None,
+        "cpp_median_numpy_cycles_us": cpp_same, "numpy_cycles": m,
+        "numpy_max_torque_difference": nb["torque_difference"],
+    })
+    return row
 
 
 def _head(r: dict[str, Any]) -> list[str]:

@@ -51,13 +51,14 @@ __all__ = [
 
 
 def built(scenario, table: str, make: Callable[[], Any]) -> Any:
-    """make(), a constructor's ValueError (its message starts with the parameter's name)
-    reported as a ScenarioError naming the scenario's file and key."""
+    """make(), a constructor's ValueError or TypeError (its message starts with the
+    parameter's name: a value out of range, an array of the wrong shape) reported as a
+    ScenarioError naming the scenario's file and key."""
     from .scenarios import ScenarioError
 
     try:
         return make()
-    except ValueError as e:
+    except (ValueError, TypeError) as e:
         msg = str(e)
         head, sep, rest = msg.partition(": ")
         head = head.strip()
@@ -70,142 +71,24 @@ def built(scenario, table: str, make: Callable[[], Any]) -> Any:
         raise ScenarioError(f"{scenario.source}: {key}: {msg}") from None
 
 
-def _translation(p) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = p
-    return T
-
-
-def _pose(position, rotation) -> np.ndarray:
-    T = _translation(position)
-    T[:3, :3] = vm.so3_exp(rotation)
-    return T
-
-
-def _omni(d: dict):
-    omni = vm.PhantomOmni(
-        l1=d["l1"], l2=d["l2"], max_force=d["max_force"], motor_torque_limit=d["motor_torque_limit"]
-    )
-    if list(d["actuated"]) == [True, True, True, False, False, False]:
-        return omni
-    # the same Omni with other joints actuated (a fully actuated variant, to compare with):
-    # its chain, joint map and limits, and motors where asked
-    limits = list(d["motor_torque_limit"]) + [d["gimbal_torque_limit"]] * 3
-    return vm.Device(
-        omni.joints,
-        d["actuated"],
-        handle=omni.handle,
-        base=omni.base,
-        torque_limit=[t if a else 0.0 for t, a in zip(limits, d["actuated"])],
-        max_force=d["max_force"],
-        stiffness=omni.stiffness,
-        damping=omni.damping,
-        name="PhantomOmni",  # the Omni's physical model and frame conventions
-        coupling=omni.coupling,
-        coupling_offset=omni.coupling_offset,
-    )
-
-
-def _planar3r(d: dict):
-    return vm.Planar3R(
-        link1=d["link1"],
-        link2=d["link2"],
-        base=_translation(d["base_position"]),
-        torque_limit=d["torque_limit"],
-        max_force=d["max_force"],
-    )
-
-
-def _serial_device(d: dict):
-    inf = float("inf")
-    joints = [
-        vm.Joint(
-            j["type"],
-            j["axis"],
-            _pose(j["origin"], j["origin_rotation"]),
-            j.get("lower", -inf),
-            j.get("upper", inf),
-        )
-        for j in d["joints"]
-    ]
-    return vm.Device(
-        joints,
-        d["actuated"],
-        handle=_pose(d["handle"], d["handle_rotation"]),
-        base=_pose(d["base_position"], d["base_rotation"]),
-        torque_limit=d["torque_limit"],
-        max_force=d.get("max_force", inf),
-    )
-
-
-def _cartesian(d: dict):
-    return vm.CartesianDevice(d["model"], handle_rotation=vm.so3_exp(d["handle_rotation"]))
-
-
-#: a scenario's [device] type -> the device it describes
-DEVICES = {
-    "PhantomOmni": _omni,
-    "Planar3R": _planar3r,
-    "Device": _serial_device,
-    "CartesianDevice": _cartesian,
-}
-
-
 def make_device(d: dict):
-    """A vm device from a scenario's [device] table."""
-    return DEVICES[d["type"]](d)
+    """A vm device from a scenario's [device] table: its kind's parameters (virtmech.kinds;
+    the MuJoCo model's keys aside)."""
+    from .scenarios.format import DEVICE_PHYSICS
+
+    return vm.make_device({k: v for k, v in d.items() if k not in DEVICE_PHYSICS})
 
 
 def make_mechanism(m: dict):
-    """A vm mechanism from a scenario's [mechanism] table (or a [[set.members]] entry)."""
-    from .shapes import shape_from_dict
-
-    t = m["type"]
-    if t == "PlanarArm":
-        return vm.PlanarArm(m["pivot"], m["normal"], m["length"], m.get("zero_direction"))
-    if t == "PointPivot":
-        return vm.PointPivot(
-            m["point"], m["normal"], m["length"], m.get("tangent"), unilateral=m["unilateral"],
-            insertion=m.get("insertion", False),
-        )
-    if t == "Probe":
-        return vm.Probe(
-            m["plane_point"], m["plane_normal"], m["length"], m.get("tangent"),
-            unilateral=m["unilateral"],
-        )
-    if t == "LineGuide":
-        return vm.LineGuide(
-            m["point"], m["direction"], m["length"], m.get("normal"), unilateral=m["unilateral"]
-        )
-    if t == "SurfaceProbe":
-        return vm.SurfaceProbe(shape_from_dict(m["surface"]), m["length"], m["unilateral"])
-    if t == "CurveGuide":
-        return vm.CurveGuide(shape_from_dict(m["curve"]), m["length"], m["normal"])
-    if t == "HandlePath":
-        return vm.HandlePath(shape_from_dict(m["curve"]), m["normal"], m["length_scale"])
-    raise ValueError(f"mechanism.type: unknown {t!r}")
+    """A vm mechanism from a scenario's [mechanism] table (or a [[set.members]] entry): its
+    kind's parameters (virtmech.kinds)."""
+    return vm.make_mechanism(m)
 
 
 def controller_kwargs(c: dict) -> dict:
-    """vm.Controller's keyword arguments from a scenario's [controller] table."""
-    kw = {
-        k: c[k]
-        for k in (
-            "law",
-            "error_velocity",
-            "period_s",
-            "ramp_time_s",
-            "max_force",
-            "max_iterations",
-            "passivity",
-            "passivity_max_energy_j",
-            "passivity_fade_j",
-        )
-    }
-    for k in ("kp", "kv", "w_a", "w_e", "w_e_star"):
-        if k in c:
-            kw[k] = np.asarray(c[k], dtype=float)
-    return kw
+    """vm.Controller's keyword arguments from a scenario's [controller] table (every row of
+    the settings table the table holds: virtmech.CONTROLLER_SETTINGS)."""
+    return {r["name"]: c[r["name"]] for r in vm.CONTROLLER_SETTINGS if r["name"] in c}
 
 
 def _renderer(S: dict, device, controller, mechanisms: list, kw: dict | None = None):
@@ -215,15 +98,8 @@ def _renderer(S: dict, device, controller, mechanisms: list, kw: dict | None = N
     if len(mechanisms) == 1:
         return controller
     st = S["set"]
-    s = vm.MechanismSet(
-        device,
-        len(mechanisms),
-        snap_distance=st["snap_distance"],
-        release_distance=st["release_distance"],
-        force_rate=st["force_rate"],
-        moment_rate=st["moment_rate"],
-        period_s=S["controller"]["period_s"],
-    )
+    settings = {r["name"]: st[r["name"]] for r in vm.SET_SETTINGS if r["name"] in st}
+    s = vm.MechanismSet(device, len(mechanisms), period_s=S["controller"]["period_s"], **settings)
     s.add(controller)
     kw = controller_kwargs(S["controller"]) if kw is None else kw
     for mech in mechanisms[1:]:

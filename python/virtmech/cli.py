@@ -89,9 +89,12 @@ def _require_format(fmt: str) -> None:
 
 def _run_one(scenario, out_dir, seed, progress: bool, fmt: str = "csv", chunk_s=None) -> dict:
     """Runs a scenario into out_dir (checked as --out; virtmech.runner writes the log,
-    run.json and the figures); returns the metrics."""
+    run.json and the figures); returns the metrics. The scenario's objects are built first,
+    so that a mistake the format cannot see (an array of the wrong shape) leaves no folder."""
+    from .builder import preflight
     from .runner import run_scenario
 
+    preflight(scenario)
     out = _out_dir(out_dir)
     return run_scenario(
         scenario, seed=seed, progress=progress, out=out, fmt=fmt, chunk_s=chunk_s

@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+import virtmech as vm
+
 #: hand grid of the stability checks (relaxed to tense; Hajian & Howe 1997 fits of the arm
 #: and fingertip): mass [kg], damping [N·s/m], stiffness [N/m]
 HUMAN_GRID = {
@@ -178,36 +180,15 @@ class Setup:
         return run_all([self.raw_with("rest", [_hold(0.0, 0.4)], 0.4)], workers)[0]
 
     def constrained_axes(self, rest: Run) -> dict[str, np.ndarray]:
-        """The directions the mechanism holds its point in, at rest (unit, world axes)."""
-        m = self.mechanism
-        t = m["type"]
-        p0 = self.point(rest)[-1]
-        if t == "PlanarArm":
-            n = _unit(m["normal"])
-            r = p0 - np.asarray(m["pivot"], dtype=float)
-            r -= (r @ n) * n
-            return {"radial": _unit(r), "normal": n}
-        if t == "Probe":
-            return {"into the plane": -_unit(m["plane_normal"])}
-        if t == "PointPivot":
-            return {"x": np.eye(3)[0], "y": np.eye(3)[1], "z": np.eye(3)[2]}
-        if t == "LineGuide":
-            d = _unit(m["direction"])
-            a = _unit(np.cross(d, np.eye(3)[np.argmin(np.abs(d))]))
-            return {"across 1": a, "across 2": np.cross(d, a)}
-        if t == "SurfaceProbe":
-            surface = _shape(m)
-            uv, _ = surface.closest_point(p0)
-            return {"into the surface": -np.asarray(surface.normal(*uv), dtype=float)}
-        if t in ("CurveGuide", "HandlePath"):
-            curve = _shape(m)
-            u, _ = curve.closest_point(p0)
-            tangent = np.asarray(curve.tangent(u), dtype=float)
-            a = _across(tangent, m["normal"])
-            return {"along the normal": a, "across": np.cross(tangent, a)}
-        raise ValueError(
-            f"mechanism.type: quality measures {', '.join(QUALITY_MECHANISMS)}, got {t!r}"
-        )
+        """The directions the mechanism holds its point in, at rest (unit, world axes): its
+        kind's (virtmech.constrained_directions)."""
+        axes = vm.constrained_directions(self._mech, self.point(rest)[-1])
+        if not axes:
+            raise ValueError(
+                f"mechanism.type: quality measures {', '.join(QUALITY_MECHANISMS)}, "
+                f"got {self.mechanism['type']!r}"
+            )
+        return {name: np.asarray(a, dtype=float) for name, a in axes.items()}
 
     def contact_point(self, rest: Run) -> np.ndarray | None:
         """For a unilateral probe (Probe, SurfaceProbe), the surface's point under the
@@ -261,16 +242,6 @@ def _shape(m: dict):
     from .shapes import shape_from_dict
 
     return shape_from_dict(m["surface"] if m["type"] == "SurfaceProbe" else m["curve"])
-
-
-def _across(tangent: np.ndarray, normal) -> np.ndarray:
-    """The unit direction across a path along `normal` (made orthogonal to the tangent);
-    any direction across it where the two are parallel."""
-    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    a = n - (n @ tangent) * tangent
-    if np.linalg.norm(a) < 1e-6:
-        a = np.cross(tangent, np.eye(3)[np.argmin(np.abs(tangent))])
-    return _unit(a)
 
 
 def _along_curve(curve, p0: np.ndarray, distance_m: float, steps: int) -> list[list[float]]:

@@ -1,8 +1,7 @@
 """Curves and surfaces from their parameters, as a scenario file or ``to_dict()`` gives
-them: ``{"type": "NurbsSurface", "control_points": ..., ...}`` (docs/geometry.md).
-
-NURBS weights default to ones; knots default to the clamped uniform vector of the degree
-(the curve or surface passes through its first and last control points)."""
+them: ``{"type": "NurbsSurface", "control_points": ..., ...}`` (docs/geometry.md; the
+core's shape kinds: NURBS weights default to ones, knots to the clamped uniform vector of
+the degree), and points of them for drawing."""
 
 from __future__ import annotations
 
@@ -12,53 +11,10 @@ import numpy as np
 
 import virtmech as vm
 
-#: the shape types by kind
-SURFACES = ("NurbsSurface", "Sphere", "Cylinder", "Plane")
-CURVES = ("NurbsCurve",)
-
-
-def clamped_uniform_knots(n: int, degree: int) -> np.ndarray:
-    """n + degree + 1 knots: degree + 1 zeros, evenly spaced interior knots, degree + 1 ones."""
-    interior = np.linspace(0.0, 1.0, n - degree + 1)[1:-1]
-    return np.r_[np.zeros(degree + 1), interior, np.ones(degree + 1)]
-
 
 def shape_from_dict(d: dict[str, Any]):
-    """A vm curve or surface from its parameters (the keys of its constructor and "type")."""
-    t = d.get("type")
-    kw = {k: v for k, v in d.items() if k != "type"}
-    if t == "NurbsCurve":
-        P = np.asarray(kw["control_points"], dtype=float)
-        degree = int(kw.get("degree", 3))
-        w = kw.get("weights")
-        knots = kw.get("knots")
-        return vm.NurbsCurve(
-            P,
-            np.ones(len(P)) if w is None else w,
-            clamped_uniform_knots(len(P), degree) if knots is None else knots,
-            degree,
-        )
-    if t == "NurbsSurface":
-        P = np.asarray(kw["control_points"], dtype=float)
-        if P.ndim != 3 or P.shape[2] != 3:
-            raise ValueError(
-                f"control_points: expected nu x nv points of 3 numbers, got shape {P.shape}"
-            )
-        nu, nv = P.shape[:2]
-        du, dv = int(kw.get("degree_u", 3)), int(kw.get("degree_v", 3))
-        w = kw.get("weights")
-        ku, kv = kw.get("knots_u"), kw.get("knots_v")
-        return vm.NurbsSurface(
-            P,
-            np.ones((nu, nv)) if w is None else w,
-            clamped_uniform_knots(nu, du) if ku is None else ku,
-            clamped_uniform_knots(nv, dv) if kv is None else kv,
-            du,
-            dv,
-        )
-    if t in ("Sphere", "Cylinder", "Plane"):
-        return getattr(vm, t)(**kw)
-    raise ValueError(f"type: expected one of {', '.join(SURFACES + CURVES)}, got {t!r}")
+    """A vm curve or surface from its parameters (its kind's, with "type": virtmech.kinds)."""
+    return vm.make_shape(d, "shape")
 
 
 def surface_grid(surface, count: int = 24, unbounded: float = 0.1) -> np.ndarray:

@@ -139,37 +139,18 @@ void ServoLoop::init() {
   check_field("plan", "segment", plan_.segment, 1, P, false);
   const int L = log_.columns;
   require(L > 0, "log.columns: expected > 0");
-  const struct {
-    const char* name;
-    int col, width;
-  } fields[] = {{"t", log_.t, 1},
-                {"q", log_.q, n_},
-                {"dq", log_.dq, n_},
-                {"qm", log_.qm, n_},
-                {"dqm", log_.dqm, n_},
-                {"handle_p", log_.handle_p, 3},
-                {"stylus", log_.stylus, 3},
-                {"twist", log_.twist, 6},
-                {"wrench", log_.wrench, 6},
-                {"tau", log_.tau, n_},
-                {"tau_motor", log_.tau_motor, n_},
-                {"status", log_.status, 1},
-                {"ramp", log_.ramp, 1},
-                {"iterations", log_.iterations, 1},
-                {"iterations_star", log_.iterations_star, 1},
-                {"theta", log_.theta, mdof_},
-                {"theta_star", log_.theta_star, mdof_},
-                {"e", log_.e, 6},
-                {"e_dot", log_.e_dot, 6},
-                {"e_star", log_.e_star, 6},
-                {"e_star_dot", log_.e_star_dot, 6},
-                {"f_null", log_.f_null, 6},
-                {"f_range", log_.f_range, 6},
-                {"hand_wrench", log_.hand_wrench, 6},
-                {"anchor", log_.anchor, 3},
-                {"segment", log_.segment, 1},
-                {"member", log_.member, 1}};
-  for (const auto& f : fields) check_field("log", f.name, f.col, f.width, L, true);
+  // every field the loop writes (the table's LOOP rows) within a row, where given
+#define VM_LOG_MEMBER(field, width, names, units, origin) &LogLayout::field,
+  static constexpr int LogLayout::*kColumns[] = {VM_LOG_TABLE(VM_LOG_MEMBER)};
+#undef VM_LOG_MEMBER
+  const std::vector<LogField>& fields = log_fields();
+  for (size_t i = 0; i < fields.size(); ++i) {
+    if (!fields[i].derived) {
+      check_field("log", fields[i].field, log_.*kColumns[i], log_width(fields[i], n_, mdof_), L,
+                  true);
+    }
+  }
+
 
   Cinv_ = s_.coupling_inv;
   CinvT_ = Cinv_.transpose();

@@ -442,7 +442,7 @@ def test_schema_prints_the_json_schema_of_the_format(capsys):
     assert props["physics"]["properties"]["rate_hz"]["default"] == 4000.0
     mech = {v["properties"]["type"]["const"]: v for v in props["mechanism"]["oneOf"]}
     assert set(mech) == {"PlanarArm", "PointPivot", "Probe", "LineGuide", "SurfaceProbe",
-                         "CurveGuide", "HandlePath"}
+                         "CurveGuide", "HandlePath", "SerialChain"}
     assert "pivot" in mech["PlanarArm"]["required"]
     assert mech["PlanarArm"]["additionalProperties"] is False
 

@@ -139,7 +139,7 @@ def test_commanded_torque_is_1000_times_the_controllers_on_the_same_readings(hel
     expected = np.array([ctrl.step(q[k], dq[k], t[k]).torque[:3] for k in range(len(q))])
     expected[(flags & ZERO_MASK) != 0] = 0.0
     commanded = trace[:, 7:10]
-    np.testing.assert_allclose(commanded, 1000.0 * expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(commanded, 1000.0 * expected)  # bit for bit
     # no clamp of the driver's own below the device's: torques beyond the 200 mN·m a vendor
     # sample clamps the Touch's waist and elbow to are sent as they are
     assert np.abs(commanded).max() > 250.0

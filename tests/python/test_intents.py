@@ -453,16 +453,34 @@ def test_after_a_release_the_handle_moves_as_on_a_model_built_without_the_hand()
     assert np.ptp(q[k0 : k0 + 100, 0]) > 1e-3  # it moved
 
 
-def test_a_push_the_physics_cannot_integrate_ends_the_run_with_a_clear_error(tmp_path):
-    # a hand pushing with 1e6 N: MuJoCo's state diverges and is reset; the run stops with a
-    # message naming the scenario and when, instead of logging the reset state
+def test_a_push_the_physics_cannot_integrate_ends_the_run_with_a_clear_error(
+    tmp_path, monkeypatch, capsys
+):
+    # a hand pushing with 1e6 N (past the format's bound, so set behind its back): MuJoCo's
+    # state diverges and is reset; the run stops with a message naming the scenario and
+    # when, instead of logging the reset state
+    from virtmech import builder
     from virtmech.sim.run_loop import SimulationUnstable
 
-    s = load("omni-fig10").with_keys({"intent.0.force": [1e6, 0.0, 0.0]})
+    s = load("omni-fig10").with_overrides(duration_s=1.5)
+    s.data["intent"][0]["force"] = [1e6, 0.0, 0.0]
     with pytest.raises(SimulationUnstable, match=r"unstable between t = 0\.000 and 1\.000 s"):
-        run(s.with_overrides(duration_s=1.5))
+        run(s)
     from virtmech.cli import main
 
+    # the format refuses the force itself, naming the key
     out = tmp_path / "o"
     assert main(["run", "omni-fig10", "--set", "intent.0.force=[1e6,0,0]", "--out", str(out),
                  "--quiet", "--duration", "0.5"]) == 2
+    assert not out.exists()
+    # and an unstable run is a user's mistake on the command line too (exit 2)
+    build = builder.build
+
+    def diverging(scenario, seed=None):
+        scenario.data["intent"][0]["force"] = [1e6, 0.0, 0.0]
+        return build(scenario, seed)
+
+    monkeypatch.setattr(builder, "build", diverging)
+    capsys.readouterr()
+    assert main(["run", "omni-fig10", "--out", str(out), "--quiet", "--duration", "0.5"]) == 2
+    assert "the simulation became unstable between t = 0.000" in capsys.readouterr().err

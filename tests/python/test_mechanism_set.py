@@ -266,3 +266,12 @@ def test_the_rendered_member_renders_as_its_controller_stepped_whole():
             if np.abs(out.torque).max() > 1e-3:
                 compared.add(out.active)
     assert compared == {0, 1}  # both members rendered real forces
+
+
+def test_an_empty_set_has_its_device_and_no_members():
+    omni = vm.PhantomOmni()
+    s = vm.MechanismSet(omni, 2)
+    assert s.device is omni  # the set's own device, members or none
+    assert s.size == 0 and s.capacity == 2
+    with pytest.raises(IndexError, match="i: expected 0 <= i < 0, got 0"):
+        s.member(0)

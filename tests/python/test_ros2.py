@@ -260,13 +260,18 @@ def test_pair_through_the_other_outputs(env, tmp_path, command):
 def test_pair_in_real_time(env, tmp_path, capsys):
     """omni-fig11 whole, the simulated device paced by the wall clock at 1 kHz and the node
     answering what it can: the deviation within 20 % of the simulated run's. Prints the round
-    trip (median, p99): measured, not asserted."""
+    trip (median, p99): measured, not asserted. On a machine too busy to run the simulated
+    device at 1 kHz (more than 2 % of its cycles behind the wall clock) the run is not a real
+    time one: the figures are printed and the test skipped (bench/ros2_latency.py measures
+    the pair on any machine)."""
     run, rms, out = _closed_loop(env, tmp_path, "omni-fig11", 3.5)
-    ref, ref_rms = _reference("omni-fig11", 3.5, tmp_path / "ref")
     info = run["ros2_sim"]
     with capsys.disabled():
         print(f"\nros2 real time: {out.strip()}")
     assert info["round_trip_count"] > 0
+    if info["realtime_behind"] > 0.02 * info["cycles"]:
+        pytest.skip(f"this machine did not keep the pair at 1 kHz: {out.strip()}")
+    ref, ref_rms = _reference("omni-fig11", 3.5, tmp_path / "ref")
     assert run["metrics"]["dist_max_m"] == pytest.approx(ref["dist_max_m"], rel=0.2)
     assert rms == pytest.approx(ref_rms, rel=0.2)
 

@@ -246,3 +246,27 @@ def test_joint_map_checked_builds_the_inverse():
     tau = np.array([1.5, -2.0])
     dq = np.array([0.2, 0.9])
     assert m.driver_efforts(tau) @ (A @ dq) == pytest.approx(tau @ dq)
+
+
+def test_a_sample_sent_again_gets_its_command_again():
+    """A driver sending a joint state again (its stamp the last one's: the answer was lost) gets
+    the command that answered it, without a second step of the controller; an older stamp is
+    dropped and counted."""
+    from virtmech.builder import build
+    from virtmech.ros2.render import RenderLoop
+
+    rig = build("omni-fig11", simulated=False)
+    settings, jmap = settings_from_parameters(default_parameters(rig), rig.device)
+    loop = RenderLoop(rig, settings, jmap)
+    q = np.array([0.05, 0.45, -0.10, 0.20, 0.60, 0.10])
+    r = jmap.driver_positions(q)
+    t0 = 1_700_000_000 * 10**9
+    for k in range(3):
+        first = loop.on_joint_state(TOUCH_JOINTS, r + 1e-3 * k, [], t0 + k * 10**6, k * 10**6)
+    assert np.abs(first.efforts).max() > 0  # a force: the comparison means something
+    again = loop.on_joint_state(TOUCH_JOINTS, r + 1.0, [], t0 + 2 * 10**6, 50 * 10**6)
+    np.testing.assert_array_equal(again.efforts, first.efforts)
+    assert loop.messages == 3 and loop.stats()["repeated"] == 1
+    assert loop.last_wall == pytest.approx(0.05)  # the driver is alive: no stale zero yet
+    assert loop.on_joint_state(TOUCH_JOINTS, r, [], t0 + 10**6, 51 * 10**6) is None
+    assert loop.out_of_order == 1 and loop.messages == 3

@@ -104,7 +104,7 @@ def test_wrong_type_names_key_value_and_expectation():
     msg = _error(GOOD.replace('type = "PhantomOmni"', 'type = "Falcon"'))
     assert (
         "device.type: value 'Falcon' is not allowed; expected one of "
-        "'PhantomOmni', 'Planar3R', 'CartesianDevice', 'Device'"
+        "'PhantomOmni', 'Planar3R', 'Device', 'CartesianDevice'"
         in msg
     )
 
@@ -269,3 +269,64 @@ def test_an_intents_axis_of_any_length_is_read_as_its_unit_vector():
     assert "b.toml: intent[0].axis: value [0, 0, 0] is out of range; expected a non-zero" in str(
         e.value
     )
+
+
+WRENCH = GOOD.replace(
+    'action = "twist"', 'action = "wrench"\nforce = FORCE\nmoment = MOMENT'
+).replace("angle_deg = 10.0\n", "")
+
+
+@pytest.mark.parametrize(
+    ("force", "moment", "key", "bound"),
+    [
+        ("[0.0, -1e6, 0.0]", "[0.0, 0.0, 0.0]", "intent[0].force[1]", "100"),
+        ("[0.0, 0.0, 0.0]", "[20.0, 0.0, 0.0]", "intent[0].moment[0]", "10"),
+    ],
+)
+def test_an_intents_force_beyond_a_hands_is_refused_naming_the_key(force, moment, key, bound):
+    with pytest.raises(sc.ScenarioError) as e:
+        sc.loads(WRENCH.replace("FORCE", force).replace("MOMENT", moment), "bad.toml")
+    msg = str(e.value)
+    assert msg.startswith(f"bad.toml: {key}: value ") and "is out of range" in msg
+    assert f">= -{bound} and <= {bound}" in msg
+    # the largest allowed is accepted
+    s = sc.loads(WRENCH.replace("FORCE", "[0.0, -100.0, 0.0]").replace("MOMENT", "[0, 0, 10]"))
+    assert s["intent"][0]["force"] == [0.0, -100.0, 0.0]
+
+
+RAGGED = """
+name = "ragged"
+duration_s = 1.0
+[device]
+type = "PhantomOmni"
+[mechanism]
+type = "SurfaceProbe"
+[mechanism.surface]
+type = "NurbsSurface"
+control_points = [[[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]], [[0.0, 0.1, 0.0]]]
+degree_u = 1
+degree_v = 1
+"""
+
+
+def test_ragged_nurbs_control_points_are_a_mistake_naming_the_key(tmp_path):
+    pytest.importorskip("mujoco")
+    import subprocess
+    import sys
+
+    from virtmech.builder import build
+
+    with pytest.raises(sc.ScenarioError) as e:
+        build(sc.loads(RAGGED, "ragged.toml"))
+    msg = str(e.value)
+    assert msg.startswith("ragged.toml: mechanism.surface.control_points: expected an array")
+    assert "(n, m, 3)" in msg and "inhomogeneous" not in msg
+    f = tmp_path / "ragged.toml"
+    f.write_text(RAGGED)
+    r = subprocess.run(
+        [sys.executable, "-m", "virtmech", "run", str(f), "--out", str(tmp_path / "o")],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert r.returncode == 2, r.stderr
+    assert "mechanism.surface.control_points" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "o").exists()

@@ -274,10 +274,12 @@ class RenderLoop:
         self.last_wall = -math.inf  # the node's clock at the last message taken [s]
         self.q = np.asarray(self.device.home, dtype=float).copy()
         self.zeroed = False  # the command is zero for stale input
+        self._last_command: Command | None = None  # the answer to the last sample taken
         # counters
         self.messages = 0
         self.late = 0
         self.out_of_order = 0
+        self.repeated = 0  # samples sent again (the stamp of the last): answered again
         self.rejected = 0  # messages without the joints (names missing, sizes wrong)
         self.stale_events = 0
         self.last_error = ""
@@ -318,7 +320,13 @@ class RenderLoop:
         if self._origin_ns is None:
             self._origin_ns = ns
         t = (ns - self._origin_ns) * 1e-9  # [s] since the first message
-        if t <= self.last_stamp:
+        if t == self.last_stamp and self._last_command is not None:
+            # the same sample again (a driver sending it again because its answer was lost):
+            # the command that answered it again, the controller not stepped twice
+            self.repeated += 1
+            self.last_wall, self.zeroed = wall_ns * 1e-9, False
+            return self._last_command
+        if t < self.last_stamp:
             self.out_of_order += 1
             return None
         gap = t - self.last_stamp
@@ -336,13 +344,14 @@ class RenderLoop:
         self.zeroed = False
         out = self.renderer.step(q, dq, t)
         tau = np.asarray(out.torque, dtype=float)
-        return Command(
+        self._last_command = Command(
             stamp_s=t,
             torque=tau,
             efforts=self.map.driver_efforts(tau),
             wrench=self.wrench(q, tau),
             output=out,
         )
+        return self._last_command
 
     # -- watchdog ------------------------------------------------------------------------
 
@@ -380,6 +389,7 @@ class RenderLoop:
             "messages": self.messages,
             "late": self.late,
             "out_of_order": self.out_of_order,
+            "repeated": self.repeated,
             "rejected": self.rejected,
             "stale": self.zeroed,
             "stale_events": self.stale_events,

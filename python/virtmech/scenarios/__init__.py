@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .. import _core
 from .overrides import (
     apply_overrides,
     override,
@@ -100,18 +99,53 @@ class Scenario:
     def to_dict(self) -> dict[str, Any]:
         return copy.deepcopy(self.data)
 
+    def __setstate__(self, state: dict) -> None:
+        # a scenario sent to another process brings its plugins' kinds with it
+        self.__dict__.update(state)
+        for path in self.data.get("plugins", []):
+            _load_plugin(path)
+
+
+def _load_plugin(path: str) -> None:
+    from .._core import load_plugin
+
+    load_plugin(path)
+
+
+def _plugins(raw: dict[str, Any], source: str) -> tuple[list[str], list[str]]:
+    """The `plugins` of a raw scenario, loaded (paths relative to the scenario's file):
+    (their absolute paths, the mistakes naming each). A `plugins` that is not a list of
+    strings is left to the format's check."""
+    plugins = raw.get("plugins", [])
+    if not isinstance(plugins, list) or not all(isinstance(p, str) for p in plugins):
+        return [], []
+    base = Path(source).parent if Path(source).is_file() else Path.cwd()
+    paths, errors = [], []
+    for i, p in enumerate(plugins):
+        path = str((base / Path(p).expanduser()).resolve())
+        try:
+            _load_plugin(path)
+            paths.append(path)
+        except ValueError as e:
+            errors.append(f"plugins[{i}]: {e}")
+    return paths, errors
+
 
 def validate(raw: dict[str, Any], source: str = "<string>") -> Scenario:
     """Checks a parsed scenario; raises one ScenarioError listing every mistake (each naming
     the source, the key, the value and what was expected). The checks between keys (e.g. the
     physics rate against the control period) run once every key is valid on its own."""
-    from .format import SCENARIO
+    from .format import scenario
     from .schema import check_table
 
+    plugins, errors = _plugins(raw, source)
+    if errors:
+        raise ScenarioError(*[f"{source}: {m}" for m in errors])
     try:
-        data = check_table("", raw, SCENARIO)
+        data = check_table("", raw, scenario())
     except ScenarioError as e:
         raise ScenarioError(*[f"{source}: {m}" for m in e.messages]) from None
+    data["plugins"] = plugins
     errors = _consistency_errors(data)
     if errors:
         raise ScenarioError(*[f"{source}: {m}" for m in errors])
@@ -141,16 +175,24 @@ def _consistency_errors(d: dict) -> list[str]:
         errors += _intent_errors(i, seg, c["period_s"])
     q = d["initial"].get("q")
     if q is not None:
-        dev = d["device"]
-        n = {"PhantomOmni": 6, "Planar3R": 3}.get(dev["type"]) or len(dev.get("joints", []))
-        if dev["type"] == "CartesianDevice":
-            n = _core.CartesianDevice(dev["model"]).dof
-        if len(q) != n:
+        n = _dof(d["device"])
+        if n is not None and len(q) != n:
             errors.append(
                 f"initial.q: expected {n} numbers (one per joint of "
                 f"{d['device']['type']}), got {len(q)} values"
             )
     return errors
+
+
+def _dof(device: dict) -> int | None:
+    """The joints of the scenario's device (None where it cannot be built: the run says why)."""
+    from .. import _core
+    from .format import DEVICE_PHYSICS
+
+    try:
+        return _core.make_device({k: v for k, v in device.items() if k not in DEVICE_PHYSICS}).dof
+    except (ValueError, TypeError):
+        return None
 
 
 def _intent_errors(i: int, seg: dict, period_s: float) -> list[str]:
@@ -228,14 +270,14 @@ def json_schema() -> dict[str, Any]:
     """The JSON Schema (draft 2020-12) of the scenario format, made from the same Fields as
     the checks (virtmech.scenarios.format): for editors' completion and checking. The checks
     between keys (validate) are not in it."""
-    from .format import SCENARIO
+    from .format import scenario
     from .schema import json_schema_of
 
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "virtmech scenario",
         "description": "A virtmech scenario file (TOML); format: docs/scenarios.md",
-        **json_schema_of(SCENARIO),
+        **json_schema_of(scenario()),
     }
 
 

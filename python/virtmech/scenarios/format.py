@@ -1,9 +1,17 @@
-"""The scenario format (docs/scenarios.md): one Field per key, with defaults and ranges."""
+"""The scenario format (docs/scenarios.md): one Field per key, with defaults and ranges.
+
+The [device], [mechanism] and shape tables are the core's kinds (virtmech.kinds: each
+kind's parameters, defaults and ranges), [controller] and [set] its settings tables
+(virtmech.CONTROLLER_SETTINGS, SET_SETTINGS): this module keeps no copy of a default or a
+range of theirs. The format is made when asked (`scenario`), so that kinds a plugin adds
+(the top-level `plugins` key) are in it."""
 
 from __future__ import annotations
 
-from .._core import CONTROLLER_DEFAULTS as _C
-from .._core import CartesianDevice as _Cartesian
+import math
+from typing import Any
+
+from .. import _core
 from .schema import Field
 
 INF = float("inf")
@@ -49,265 +57,91 @@ DEVICE_PHYSICS = {
     "stylus_com": num(min=-0.2, max=0.2, doc="stylus centre of mass along the stylus [m]"),
 }
 
-#: one joint of a serial-chain device, as vm.Joint takes it (limits: none when omitted)
-DEVICE_JOINT = Field(
-    "tables",
-    required=True,
-    children={
-        "type": Field("string", required=True, choices=("revolute", "prismatic")),
-        "axis": direction(required=True, doc="3 numbers, not all zero, in the joint frame"),
-        "origin": vec(3, [0.0, 0.0, 0.0], doc="the joint frame's position in the previous [m]"),
-        "origin_rotation": vec(
-            3, [0.0, 0.0, 0.0], doc="the joint frame's rotation vector in the previous [rad]"
-        ),
-        "lower": num(min=-1e3, max=1e3, doc="lower limit [rad or m]; none when omitted"),
-        "upper": num(min=-1e3, max=1e3, doc="upper limit [rad or m]; none when omitted"),
-    },
-)
+def _finite(x: float) -> float | None:
+    return x if math.isfinite(x) else None
 
-DEVICE = Field(
-    "table",
-    required=True,
-    variant_key="type",
-    variants={
-        "PhantomOmni": {
-            "l1": num(0.13335, min=0.01, max=1.0),
-            "l2": num(0.13335, min=0.01, max=1.0),
-            "max_force": num(3.3, min=0, min_exclusive=True, max=100),
-            "motor_torque_limit": vec(3, [0.44, 0.44, 0.44]),
-            "actuated": Field(
-                "vector",
-                element=Field("bool"),
-                length=6,
-                default=[True, True, True, False, False, False],
-                doc="6 true or false: which joints have a motor (a fully actuated variant: "
-                "all true)",
-            ),
-            "gimbal_torque_limit": num(
-                0.1, min=0, min_exclusive=True, max=10,
-                doc="torque limit of a gimbal joint made actuated [N m]",
-            ),
-            **DEVICE_PHYSICS,
-        },
-        "Planar3R": {
-            "link1": num(0.2, min=0.01, max=2.0),
-            "link2": num(0.2, min=0.01, max=2.0),
-            "torque_limit": num(1.0, min=0, min_exclusive=True, max=1000),
-            "max_force": num(5.0, min=0, min_exclusive=True, max=1000),
-            "base_position": vec(3, [0.0, 0.0, 0.0]),
-            **DEVICE_PHYSICS,
-        },
-        "CartesianDevice": {
-            "model": Field(
-                "string",
-                required=True,
-                choices=tuple(_Cartesian.MODELS),
-                doc="the device model: its coordinates, actuation, workspace and limits",
-            ),
-            "handle_rotation": vec(
-                3,
-                [3.141592653589793, 0.0, 0.0],
-                doc="the handle frame's rotation vector in the SDK's end-effector frame [rad] "
-                "(default: the stylus along its -z)",
-            ),
-            **DEVICE_PHYSICS,
-        },
-        "Device": {
-            "joints": DEVICE_JOINT,
-            "actuated": Field(
-                "vector", element=Field("bool"), required=True, doc="one true or false per joint"
-            ),
-            "torque_limit": Field(
-                "vector", required=True, doc="one limit per joint [N m or N]; 0 where passive"
-            ),
-            "max_force": num(min=0, min_exclusive=True, max=1000, doc="force limit [N]"),
-            "handle": vec(3, [0.0, 0.0, 0.0], doc="the handle in the last joint's frame [m]"),
-            "handle_rotation": vec(3, [0.0, 0.0, 0.0], doc="its rotation vector [rad]"),
-            "base_position": vec(3, [0.0, 0.0, 0.0], doc="the chain's base [m]"),
-            "base_rotation": vec(3, [0.0, 0.0, 0.0], doc="its rotation vector [rad]"),
-            **DEVICE_PHYSICS,
-        },
-    },
-)
 
-UNILATERAL = Field(
-    "bool",
-    default=False,
-    doc="the tip may lift off toward +normal: the surface pushes but never pulls",
-)
+def _unit(doc: str, unit: str) -> str:
+    return f"{doc} [{unit}]" if unit else doc
 
-#: a surface or curve of a mechanism (docs/geometry.md); NURBS weights default to ones, knots
-#: to the clamped uniform vector of the degree
-_NURBS_POINT = Field("vector", length=3, doc="3 numbers [m]")
-SURFACE = Field(
-    "table",
-    required=True,
-    variant_key="type",
-    variants={
-        "NurbsSurface": {
-            "control_points": Field(
-                "vector",
-                required=True,
-                element=Field("vector", element=_NURBS_POINT),
-                doc="nu rows of nv points of 3 numbers [m]",
-            ),
-            "weights": Field("vector", element=Field("vector"), doc="nu rows of nv numbers > 0"),
-            "knots_u": Field("vector", doc="nu + degree_u + 1 numbers (default clamped uniform)"),
-            "knots_v": Field("vector", doc="nv + degree_v + 1 numbers (default clamped uniform)"),
-            "degree_u": Field("integer", default=3, min=1, max=7),
-            "degree_v": Field("integer", default=3, min=1, max=7),
-        },
-        "Sphere": {
-            "center": vec(3, required=True, doc="3 numbers [m]"),
-            "radius": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
-            "axis": direction([0.0, 0.0, 1.0], doc="the poles' direction (keep them unused)"),
-        },
-        "Cylinder": {
-            "point": vec(3, required=True, doc="3 numbers [m]"),
-            "direction": direction(required=True),
-            "radius": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
-        },
-        "Plane": {
-            "point": vec(3, required=True, doc="3 numbers [m]"),
-            "normal": direction(required=True),
-        },
-    },
-)
 
-CURVE = Field(
-    "table",
-    required=True,
-    variant_key="type",
-    variants={
-        "NurbsCurve": {
-            "control_points": Field(
-                "vector", required=True, element=_NURBS_POINT, doc="n points of 3 numbers [m]"
-            ),
-            "weights": Field("vector", doc="n numbers > 0 (default ones)"),
-            "knots": Field("vector", doc="n + degree + 1 numbers (default clamped uniform)"),
-            "degree": Field("integer", default=3, min=1, max=7),
-        },
-    },
-)
+def _array(shape: tuple, p: dict, **kw: Any) -> Field:
+    """A Field of numbers of `shape` (-1: any size), each within p's range."""
+    length = shape[0] if shape[0] >= 0 else None
+    if len(shape) == 1:
+        return Field("vector", length=length, nonzero=p["nonzero"], min=_finite(p["min"]),
+                     max=_finite(p["max"]), min_exclusive=p["min_exclusive"], **kw)
+    return Field("vector", length=length, element=_array(shape[1:], p), **kw)
 
-MECHANISM = Field(
-    "table",
-    required=True,
-    variant_key="type",
-    variants={
-        "PlanarArm": {
-            "pivot": vec(3, required=True, doc="3 numbers [m]"),
-            "normal": direction([0.0, 0.0, 1.0]),
-            "length": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
-            "zero_direction": direction(),
-        },
-        "PointPivot": {
-            "point": vec(3, required=True, doc="3 numbers [m]"),
-            "normal": direction([0.0, 0.0, 1.0]),
-            "length": num(0.1, min=0, min_exclusive=True, max=10),
-            "tangent": direction(),
-            "unilateral": UNILATERAL,
-            "insertion": Field(
-                "bool",
-                default=False,
-                doc="a trocar: the stylus passes through the point and slides along itself",
-            ),
-        },
-        "Probe": {
-            "plane_point": vec(3, required=True, doc="3 numbers [m]"),
-            "plane_normal": direction(required=True),
-            "length": num(required=True, min=0, min_exclusive=True, max=10, doc="a number [m]"),
-            "tangent": direction(),
-            "unilateral": UNILATERAL,
-        },
-        "LineGuide": {
-            "point": vec(3, required=True, doc="3 numbers [m]"),
-            "direction": direction(required=True),
-            "length": num(0.1, min=0, min_exclusive=True, max=10),
-            "normal": direction(),
-            "unilateral": UNILATERAL,
-        },
-        "SurfaceProbe": {
-            "surface": SURFACE,
-            "length": num(0.1, min=0, min_exclusive=True, max=10),
-            "unilateral": UNILATERAL,
-        },
-        "CurveGuide": {
-            "curve": CURVE,
-            "length": num(0.1, min=0, min_exclusive=True, max=10),
-            "normal": direction([0.0, 0.0, 1.0], doc="the side the hand is on"),
-        },
-        "HandlePath": {
-            "curve": CURVE,
-            "normal": direction([0.0, 0.0, 1.0]),
-            "length_scale": num(0.1, min=0, min_exclusive=True, max=10),
-        },
-    },
-)
 
-#: several mechanisms at once: the [mechanism] is member 0, [[set.members]] the others
-#: (docs/scenarios.md); a set of one mechanism is that mechanism's controller alone
-SET = Field(
-    "table",
-    children={
-        "members": Field(
-            "tables",
-            default=[],
-            variant_key="type",
-            variants=MECHANISM.variants,
-            doc="the other mechanisms, as [mechanism] tables",
-        ),
-        "snap_distance": num(0.005, min=0, min_exclusive=True, max=1.0,
-                             doc="a member engages within this distance [m]"),
-        "release_distance": num(0.010, min=0, min_exclusive=True, max=1.0,
-                                doc="... and lets go beyond this one [m] (>= snap_distance)"),
-        "force_rate": num(100.0, min=0, min_exclusive=True, max=1e6,
-                          doc="largest change of the force while switching [N/s]"),
-        "moment_rate": num(1.0, min=0, min_exclusive=True, max=1e6,
-                           doc="largest change of the moment while switching [N m/s]"),
-    },
-)
+def param_field(p: dict) -> Field:
+    """The Field of one parameter of a kind (virtmech.kinds)."""
+    kw: dict[str, Any] = {"required": p["required"], "doc": _unit(p["doc"], p["unit"])}
+    if "default" in p:
+        kw["default"] = p["default"]
+    k = p["kind"]
+    if k in ("number", "integer"):
+        return Field(k, min=_finite(p["min"]), max=_finite(p["max"]),
+                     min_exclusive=p["min_exclusive"], **kw)
+    if k == "bool":
+        return Field("bool", **kw)
+    if k == "string":
+        return Field("string", choices=tuple(p["choices"]) or None, **kw)
+    if k == "array":
+        return _array(tuple(p["shape"]), p, **kw)
+    if k == "bools":
+        n = p["shape"][0]
+        return Field("vector", element=Field("bool"), length=n if n >= 0 else None, **kw)
+    if k in ("curve", "surface"):
+        return Field("table", variant_key="type", variants=kind_fields(k), **kw)
+    if k == "tables":
+        return Field("tables", children={f["name"]: param_field(f) for f in p["fields"]}, **kw)
+    raise AssertionError(k)
 
-CONTROLLER = Field(
-    "table",
-    children={
-        "law": Field(
-            "string", default=_C["law"], choices=("auto", "null_space", "under_actuated")
-        ),
-        "kp": opt_vec(6, "stiffness [N/m x3, N m/rad x3]"),
-        "kv": opt_vec(6, "damping [N s/m x3, N m s/rad x3]"),
-        "w_a": opt_vec(6),
-        "w_e": opt_vec(6),
-        "w_e_star": opt_vec(6),
-        "error_velocity": Field(
-            "string", default=_C["error_velocity"], choices=("relative", "handle")
-        ),
-        "period_s": num(_C["period_s"], min=1e-5, max=0.1),
-        "ramp_time_s": num(_C["ramp_time_s"], min=0, max=10),
-        "max_force": num(0.0, min=0, max=1000),
-        "max_iterations": Field("integer", default=_C["max_iterations"], min=1, max=1000),
-        "passivity": Field(
-            "string",
-            default=_C["passivity"],
-            choices=("energy_tank", "off"),
-            doc="energy_tank: eq. 26's range term only as long as the user has put in the "
-            "energy it gives (off: the laws as written, the paper's behaviour)",
-        ),
-        "passivity_max_energy_j": num(
-            _C["passivity_max_energy_j"],
-            min=0,
-            max=1000,
-            doc="the most energy the tank holds [J]",
-        ),
-        "passivity_fade_j": num(
-            _C["passivity_fade_j"],
-            min=0,
-            min_exclusive=True,
-            max=1000,
-            doc="the range term fades out as the tank falls from 0 to minus this [J]",
-        ),
-    },
-)
+
+def kind_fields(what: str, extra: dict[str, Field] | None = None) -> dict[str, dict[str, Field]]:
+    """{kind: {parameter: Field}} of the core's registered kinds of `what` ("mechanism",
+    "device", "curve", "surface"), each with the `extra` keys."""
+    return {k["name"]: {**{p["name"]: param_field(p) for p in k["params"]}, **(extra or {})}
+            for k in _core.kinds(what)}
+
+
+def setting_field(row: dict) -> Field:
+    """The Field of one row of a settings table (virtmech.CONTROLLER_SETTINGS, SET_SETTINGS)."""
+    doc = _unit(row["doc"], row["unit"])
+    if row["kind"] == "vector6":
+        return Field("vector", length=6, min=0, doc=doc)
+    if row["kind"] == "choice":
+        return Field("string", default=row["default"], choices=tuple(row["choices"]), doc=doc)
+    return Field("number" if row["kind"] == "number" else "integer", default=row["default"],
+                 min=row["min"], max=_finite(row["max"]), min_exclusive=row["min_exclusive"],
+                 doc=doc)
+
+
+def _device() -> Field:
+    return Field("table", required=True, variant_key="type",
+                 variants=kind_fields("device", DEVICE_PHYSICS))
+
+
+def _mechanism() -> Field:
+    return Field("table", required=True, variant_key="type", variants=kind_fields("mechanism"))
+
+
+def _set(mechanism: Field) -> Field:
+    """Several mechanisms at once: the [mechanism] is member 0, [[set.members]] the others
+    (docs/scenarios.md); a set of one mechanism is that mechanism's controller alone. The
+    servo period is the controller's."""
+    rows = [r for r in _core.SET_SETTINGS if r["name"] != "period_s"]
+    return Field("table", children={
+        "members": Field("tables", default=[], variant_key="type", variants=mechanism.variants,
+                         doc="the other mechanisms, as [mechanism] tables"),
+        **{r["name"]: setting_field(r) for r in rows},
+    })
+
+
+def _controller() -> Field:
+    return Field("table", children={r["name"]: setting_field(r) for r in _core.CONTROLLER_SETTINGS})
+
 
 PHYSICS = Field(
     "table",
@@ -357,9 +191,23 @@ HUMAN = Field(
 )
 
 _MODE = ("passive", "hold")
+#: the largest force and moment component an intent may apply: a hand pushing on a held
+#: stylus or handle, beyond every device's peak force (a few to 20 N) by far, so that a
+#: mistyped unit (1e6) is a named mistake rather than a diverging simulation
+MAX_INTENT_FORCE_N = 100.0
+MAX_INTENT_MOMENT_NM = 10.0
+
+
+def _bounded_vec(limit: float, unit: str, required: bool = False) -> Field:
+    return Field(
+        "vector", length=3, required=required, min=-limit, max=limit,
+        doc=f"3 numbers [{unit}], each within ±{limit:g}",
+    )
+
+
 _PUSH = {
-    "force": opt_vec(3, "3 numbers [N]"),
-    "moment": opt_vec(3, "3 numbers [N m]"),
+    "force": _bounded_vec(MAX_INTENT_FORCE_N, "N"),
+    "moment": _bounded_vec(MAX_INTENT_MOMENT_NM, "N m"),
     "force_frame": Field(
         "string", default="world", choices=("world", "handle"),
         doc="the axes of force and moment",
@@ -413,7 +261,7 @@ INTENT = Field(
             "angle_deg": num(required=True, min=-720, max=720, doc="a number [deg]"),
             "axis": _AXIS,
         },
-        "push": {**_COMMON, "force": vec(3, required=True, doc="3 numbers [N]")},
+        "push": {**_COMMON, "force": _bounded_vec(MAX_INTENT_FORCE_N, "N", required=True)},
         "sine": {
             **_OSCILLATION,
             "frequency_hz": num(required=True, min_exclusive=True, doc="a number [Hz] > 0",
@@ -447,30 +295,40 @@ CHECKS = Field(
     },
 )
 
-SCENARIO = Field(
-    "table",
-    children={
-        "name": Field(
-            "string",
-            required=True,
-            pattern=SAFE_NAME,
-            doc="a plain file name (letters, digits, '-', '_', '.'; not starting with '.'): "
-            "the name of the run's output folder",
-        ),
-        "description": Field("string", default=""),
-        "duration_s": num(
-            required=True, min=0, min_exclusive=True, max=3600, doc="a number [s] > 0"
-        ),
-        "seed": Field("integer", default=0, min=0, max=2**63 - 1),
-        "device": DEVICE,
-        "mechanism": MECHANISM,
-        "controller": CONTROLLER,
-        "physics": PHYSICS,
-        "sensors": SENSORS,
-        "set": SET,
-        "initial": INITIAL,
-        "human": HUMAN,
-        "intent": INTENT,
-        "checks": CHECKS,
-    },
-)
+def scenario() -> Field:
+    """The whole format, with the kinds registered now."""
+    mechanism = _mechanism()
+    return Field(
+        "table",
+        children={
+            "name": Field(
+                "string",
+                required=True,
+                pattern=SAFE_NAME,
+                doc="a plain file name (letters, digits, '-', '_', '.'; not starting with '.'): "
+                "the name of the run's output folder",
+            ),
+            "description": Field("string", default=""),
+            "duration_s": num(
+                required=True, min=0, min_exclusive=True, max=3600, doc="a number [s] > 0"
+            ),
+            "seed": Field("integer", default=0, min=0, max=2**63 - 1),
+            "plugins": Field(
+                "vector",
+                element=Field("string"),
+                default=[],
+                doc="shared libraries adding kinds of mechanism, device or shape (paths "
+                "relative to the scenario file): virtmech.load_plugin",
+            ),
+            "device": _device(),
+            "mechanism": mechanism,
+            "controller": _controller(),
+            "physics": PHYSICS,
+            "sensors": SENSORS,
+            "set": _set(mechanism),
+            "initial": INITIAL,
+            "human": HUMAN,
+            "intent": INTENT,
+            "checks": CHECKS,
+        },
+    )

@@ -8,12 +8,16 @@ so no Python runs per cycle. What it does per cycle is written out in its header
 docs/simulation.md, "The loop".
 
 Where each quantity sits in a plan row and in a log row is given to the loop here, from the
-one table of each: `human.PLAN_COLUMNS` and `loop.log_columns` (PLAN_FIELDS and LOG_FIELDS
-name the first column of each of the loop's fields).
+one table of each: `human.PLAN_COLUMNS`, and the log's table in C++
+(sim/include/virtmech/sim/log_table.hpp, `virtmech._sim.LOG_TABLE`), from which come the
+column names (`log_columns`), their units (`UNITS`) and LOG_FIELDS (the first column of each
+of the loop's fields).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -37,37 +41,49 @@ PLAN_FIELDS = {
     "segment": "segment",
 }
 
-#: the loop's log fields -> the first of their columns in loop.log_columns (the columns it
-#: does not write follow from these after the run)
-LOG_FIELDS = {
-    "t": "t",
-    "q": "q0",
-    "dq": "dq0",
-    "qm": "qm0",
-    "dqm": "dqm0",
-    "handle_p": "px",
-    "stylus": "sx",
-    "twist": "vx",
-    "wrench": "fx",
-    "tau": "tau0",
-    "tau_motor": "tau_motor0",
-    "status": "status",
-    "ramp": "ramp",
-    "iterations": "iterations",
-    "iterations_star": "iterations_star",
-    "theta": "theta0",
-    "theta_star": "theta_star0",
-    "e": "e0",
-    "e_dot": "e_dot0",
-    "e_star": "e_star0",
-    "e_star_dot": "e_star_dot0",
-    "f_null": "f_null0",
-    "f_range": "f_range0",
-    "hand_wrench": "fhx",
-    "anchor": "ax",
-    "segment": "segment",
-    "member": "member",
-}
+@cache
+def _log_table() -> tuple[dict, ...]:
+    return tuple(_sim_module().LOG_TABLE)
+
+
+class _LazyTable(Mapping):
+    """A mapping read from the log's table on first use (virtmech._sim loads lazily, so that
+    a missing MuJoCo is reported where the loop is used)."""
+
+    def __init__(self, make):
+        self._make, self._data = make, None
+
+    def _get(self) -> dict:
+        if self._data is None:
+            self._data = self._make()
+        return self._data
+
+    def __getitem__(self, key):
+        return self._get()[key]
+
+    def __setitem__(self, key, value):  # (tests change a field's column)
+        self._get()[key] = value
+
+    def __delitem__(self, key):
+        del self._get()[key]
+
+    def __iter__(self) -> Iterator:
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+
+#: the loop's log fields -> the first of their columns in log_columns (the columns it does
+#: not write follow from these after the run)
+LOG_FIELDS = _LazyTable(lambda: {r["field"]: r["first"] for r in _log_table() if not r["derived"]})
+#: a column's (or a group of columns') unit, by its name or prefix ("q": q0, q1, ...)
+UNITS = _LazyTable(lambda: {k: u for r in _log_table() for k, u in r["units"]})
+
+
+def log_columns(n: int, m: int) -> list[str]:
+    """The log's columns for a device of n joints and a mechanism of m (a set's widest)."""
+    return list(_sim_module().log_columns(n, m))
 
 
 def layout(fields: dict[str, str], columns: list[str]) -> dict[str, int]:
@@ -105,24 +121,22 @@ class ServoLoop:
     def __init__(self, controller, model, data, *, log_columns: list[str], **kw):
         _sim = _sim_module()
         self._keep = (model, data)  # the loop holds raw pointers into these
+        s = _sim.LoopSettings()
+        s.coupling_inv = np.asarray(kw["coupling_inv"], dtype=float)
+        s.coupling_offset = np.asarray(kw["coupling_offset"], dtype=float)
+        s.actuated = [int(a) for a in kw["actuated"]]
+        s.substeps = int(kw["substeps"])
+        s.period_s = float(kw["period_s"])
+        s.comp_bodies = [int(b) for b in kw["comp_bodies"]]
+        s.comp_masses = [float(m) for m in kw["comp_masses"]]
+        s.gravity = np.asarray(kw["gravity"], dtype=float)
+        s.quantum = float(kw["sensors"].quantum_rad)
+        s.delay_cycles = int(kw["sensors"].delay_cycles)
+        s.velocity_alpha = float(kw["sensors"].velocity_alpha(s.period_s))
+        s.hand_body = int(kw.get("hand_body", -1))
         self._loop = _sim.ServoLoop(
-            controller,
-            model._address,
-            data._address,
-            np.ascontiguousarray(kw["coupling_inv"], dtype=float),
-            np.ascontiguousarray(kw["coupling_offset"], dtype=float),
-            [int(a) for a in kw["actuated"]],
-            int(kw["substeps"]),
-            float(kw["period_s"]),
-            [int(b) for b in kw["comp_bodies"]],
-            [float(m) for m in kw["comp_masses"]],
-            np.ascontiguousarray(kw["gravity"], dtype=float),
-            float(kw["sensors"].quantum_rad),
-            int(kw["sensors"].delay_cycles),
-            float(kw["sensors"].velocity_alpha(float(kw["period_s"]))),
-            int(kw.get("hand_body", -1)),
-            layout(PLAN_FIELDS, list(PLAN_COLUMNS)),
-            layout(LOG_FIELDS, list(log_columns)),
+            controller, model._address, data._address, s,
+            layout(PLAN_FIELDS, list(PLAN_COLUMNS)), layout(LOG_FIELDS, list(log_columns)),
         )
 
     def run(self, k0: int, plan, noise, dropout, log) -> None:
@@ -140,4 +154,4 @@ class ServoLoop:
         return bool(self._loop.hand_attached)
 
 
-__all__ = ["LOG_FIELDS", "PLAN_FIELDS", "ServoLoop", "layout"]
+__all__ = ["LOG_FIELDS", "PLAN_FIELDS", "UNITS", "ServoLoop", "layout", "log_columns"]

@@ -14,6 +14,7 @@ import numpy as np
 
 import virtmech as vm
 
+from . import inner
 from .geometry import COLUMNS as DIST_COLUMNS
 from .geometry import distances, geometry_of
 from .grip import finger_forces_batch
@@ -118,81 +119,14 @@ class SimResult:
         return int(self.log.shape[0])
 
 
-def _names(prefix: str, n: int) -> list[str]:
-    return [f"{prefix}{i}" for i in range(n)]
-
-
 def log_columns(n: int, m: int) -> list[str]:
-    xyz = ["x", "y", "z"]
-    return (
-        ["t"]
-        + _names("q", n)
-        + _names("dq", n)
-        + _names("qm", n)
-        + _names("dqm", n)
-        + ["px", "py", "pz", "sx", "sy", "sz", "vx", "vy", "vz", "wx", "wy", "wz"]
-        + ["fx", "fy", "fz", "mx", "my", "mz"]
-        + _names("tau", n)
-        + _names("tau_motor", n)
-        + ["status", "ramp", "iterations", "iterations_star"]
-        + _names("theta", m)
-        + _names("theta_star", m)
-        + _names("e", 6)
-        + _names("e_dot", 6)
-        + _names("e_star", 6)
-        + _names("e_star_dot", 6)
-        + _names("f_null", 6)
-        + _names("f_range", 6)
-        + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz"]
-        + ["ax", "ay", "az", "segment", "member"]
-        + list(DIST_COLUMNS)
-        + ["arm_pos_angle", "arm_stylus_angle"]
-        + [f"ff1{c}" for c in xyz]
-        + [f"ff2{c}" for c in xyz]
-        + ["grip_twist"]
-    )
+    """The log's columns for a device of n joints and a mechanism of m (the table of
+    sim/include/virtmech/sim/log_table.hpp)."""
+    return inner.log_columns(n, m)
 
 
-UNITS = {
-    "t": "s",
-    "q": "rad",
-    "dq": "rad/s",
-    "qm": "rad (measured)",
-    "dqm": "rad/s (estimated)",
-    "px": "m",
-    "sx": "unit stylus direction",
-    "vx": "m/s",
-    "wx": "rad/s",
-    "fx": "N (device on handle)",
-    "mx": "N·m (device on handle)",
-    "tau": "N·m (controller command)",
-    "tau_motor": "N·m (motor output incl. gravity compensation, saturated)",
-    "status": "bits (virtmech.status)",
-    "ramp": "1",
-    "theta": "rad (nearest placement, W_e)",
-    "theta_star": "rad (un-powered placement, W_e*)",
-    "e": "m x3, rad x3",
-    "e_dot": "m/s, rad/s",
-    "e_star": "m, rad",
-    "e_star_dot": "m/s, rad/s",
-    "f_null": "N, N·m (eq. 26 null-space part)",
-    "f_range": "N, N·m (eq. 26 range-space part)",
-    "fhx": "N (hand on handle)",
-    "mhx": "N·m (hand on handle)",
-    "ax": "m (hand anchor)",
-    "segment": "intent segment index",
-    "member": "mechanism rendered: 0 the [mechanism], i the set's i-th (-1: none)",
-    "dist": "m (distance from where the mechanism allows; sim.geometry; a set's run: the "
-    "rendered member's, with none the nearest member's)",
-    "dist_signed": "m (signed distance from the mechanism's path or surface; sim.geometry)",
-    "dist_normal": "m (part along the mechanism's normal; sim.geometry)",
-    "dist_across": "m (the rest; sim.geometry)",
-    "arm_pos_angle": "rad (PlanarArm: angle of the handle position about the pivot)",
-    "arm_stylus_angle": "rad (PlanarArm: mechanism angle the stylus points for)",
-    "ff1x": "N (finger 1 on handle)",
-    "ff2x": "N (finger 2 on handle)",
-    "grip_twist": "N·m (moment about the stylus the grip adds)",
-}
+#: a column's unit by its name or prefix (the log's table)
+UNITS = inner.UNITS
 
 
 # ---------------------------------------------------------------------------------------
@@ -233,9 +167,10 @@ class DerivedColumns:
 
     def __init__(self, columns: list[str], mechanisms: list, contacts):
         self.c = {name: i for i, name in enumerate(columns)}
-        self.mechanisms = [m if isinstance(m, dict) else m.to_dict() for m in mechanisms]
+        # the mechanisms (or their to_dict()), made once
+        self.mechanisms = [vm.make_mechanism(m) if isinstance(m, dict) else m for m in mechanisms]
         first = self.mechanisms[0]
-        self.planar = PlanarGeometry(first) if first["type"] == "PlanarArm" else None
+        self.planar = PlanarGeometry(first.to_dict()) if first.type == "PlanarArm" else None
         self.contacts = contacts
 
     def _distances(self, log: np.ndarray, p_h: np.ndarray, z_h: np.ndarray) -> np.ndarray:
@@ -256,7 +191,7 @@ class DerivedColumns:
         rows = np.arange(len(log))
         # the set's own distance (MechanismSet::distance): a unilateral member's tip height
         # above its surface (its dist, the depth, is 0 all the way up), others' dist
-        d = np.stack([np.maximum(each[i, :, 1], 0.0) if m.get("unilateral") else each[i, :, 0]
+        d = np.stack([np.maximum(each[i, :, 1], 0.0) if m.contact_joint >= 0 else each[i, :, 0]
                       for i, m in enumerate(self.mechanisms)])
         finite = np.isfinite(d)
         nearest = np.where(finite, d, np.inf).argmin(axis=0)

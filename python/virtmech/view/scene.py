@@ -1,16 +1,19 @@
 """What `virtmech view` draws, as viser scene nodes, from a frame (LiveSim.snapshot or
 Replay.frame): the device's bodies (the MuJoCo model's geoms at their poses) and joints,
-the virtual mechanism (a PlanarArm's circle and pivot, a Probe's plane, a LineGuide's line,
-a PointPivot's point) with its two placements (theta: the nearest; theta*: the un-powered),
-the virtual probe (the handle moved by the mechanism's length along the stylus), the
-device's force at the handle and its null- and range-space parts as arrows (1 N = 10 mm),
-and the hand's target and its spring to the handle."""
+the virtual mechanism as its kind draws itself (virtmech.sketch: a PlanarArm's circle and
+pivot, a Probe's plane, a LineGuide's line, a PointPivot's point, ...) with its two
+placements (theta: the nearest; theta*: the un-powered), the virtual probe (the handle
+moved by the mechanism's length along the stylus), the device's force at the handle and
+its null- and range-space parts as arrows (1 N = 10 mm), and the hand's target and its
+spring to the handle."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+
+import virtmech as vm
 
 #: colours (RGB 0-255)
 DEVICE_RGB = (235, 120, 20)  # links: orange
@@ -182,73 +185,31 @@ class Scene:
         )
 
     def _build_mechanism(self) -> None:
-        for i, md in enumerate([self.md, *self.members]):
-            self._draw_mechanism(md, "/mech" if i == 0 else f"/mech{i}")
+        members = [vm.make_mechanism(md) for md in self.members]
+        for i, mech in enumerate([self.mech, *members]):
+            self._draw_mechanism(mech, "/mech" if i == 0 else f"/mech{i}")
 
-    def _draw_mechanism(self, md: dict, root: str) -> None:
+    def _draw_mechanism(self, mech, root: str) -> None:
+        """The mechanism as its kind draws itself (virtmech.sketch: lines, points, meshes)."""
         sc = self.server.scene
-        kind = md.get("type")
-        if kind == "PlanarArm":
-            c, n = np.asarray(md["pivot"], dtype=float), _unit(md["normal"])
-            u, v = _basis(n)
-            a = np.linspace(0, 2 * math.pi, 97)
-            pts = c + md["length"] * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * v)
-            seg = np.stack([pts[:-1], pts[1:]], axis=1)
-            self._add(sc.add_line_segments(f"{root}/circle", seg, MECH_RGB, thickness=0.0012))
-            self._add(sc.add_icosphere(f"{root}/pivot", radius=0.003, color=MECH_RGB, position=c))
-        elif kind == "Probe":
-            c, n = np.asarray(md["plane_point"], dtype=float), _unit(md["plane_normal"])
-            u, v = _basis(n)
-            h = 0.08
-            corners = np.array(
-                [c + h * (s * u + t * v) for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
-            )
+        sketch = vm.sketch(mech)
+        for k, line in enumerate(sketch["lines"]):
+            seg = np.stack([line[:-1], line[1:]], axis=1)
+            self._add(sc.add_line_segments(f"{root}/line{k}", seg, MECH_RGB, thickness=0.0015))
+        for k, p in enumerate(sketch["points"]):
+            self._add(sc.add_icosphere(f"{root}/point{k}", radius=0.0035, color=MECH_RGB,
+                                       position=p))
+        for k, (vertices, faces) in enumerate(sketch["meshes"]):
             self._add(
                 sc.add_mesh_simple(
-                    f"{root}/plane",
-                    vertices=corners.astype(np.float32),
-                    faces=np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32),
+                    f"{root}/mesh{k}",
+                    vertices=np.asarray(vertices, dtype=np.float32),
+                    faces=np.asarray(faces, dtype=np.uint32),
                     color=MECH_RGB,
-                    opacity=0.25,
+                    opacity=0.3,
                     side="double",
                 )
             )
-            edges = np.stack([corners, np.roll(corners, -1, axis=0)], axis=1)
-            self._add(sc.add_line_segments(f"{root}/edges", edges, MECH_RGB, thickness=0.001))
-        elif kind == "LineGuide":
-            p, d = np.asarray(md["point"], dtype=float), _unit(md["direction"])
-            seg = np.array([[p - 0.1 * d, p + 0.1 * d]])
-            self._add(sc.add_line_segments(f"{root}/line", seg, MECH_RGB, thickness=0.0015))
-        elif kind == "PointPivot":
-            p = np.asarray(md["point"], dtype=float)
-            self._add(sc.add_icosphere(f"{root}/point", radius=0.004, color=MECH_RGB, position=p))
-        elif kind == "SurfaceProbe":
-            from ..shapes import shape_from_dict, surface_grid
-
-            surface = shape_from_dict(md["surface"])
-            count = 32
-            G = surface_grid(surface, count)  # (count, count, 3)
-            i, j = np.meshgrid(np.arange(count - 1), np.arange(count - 1), indexing="ij")
-            a = (i * count + j).ravel()
-            faces = np.concatenate(
-                [np.stack([a, a + count, a + count + 1], 1), np.stack([a, a + count + 1, a + 1], 1)]
-            ).astype(np.uint32)
-            self._add(
-                sc.add_mesh_simple(
-                    f"{root}/surface",
-                    vertices=G.reshape(-1, 3).astype(np.float32),
-                    faces=faces,
-                    color=MECH_RGB,
-                    opacity=0.35,
-                    side="double",
-                )
-            )
-        elif kind in ("CurveGuide", "HandlePath"):
-            from ..shapes import curve_points, shape_from_dict
-
-            pts = curve_points(shape_from_dict(md["curve"]))
-            seg = np.stack([pts[:-1], pts[1:]], axis=1)
-            self._add(sc.add_line_segments(f"{root}/curve", seg, MECH_RGB, thickness=0.0015))
 
     def remove(self) -> None:
         for h in reversed(self.nodes):

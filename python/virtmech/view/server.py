@@ -410,6 +410,12 @@ class ViewServer:
         )
 
     def _build_live_gui(self) -> None:
+        self._add_live_controls()
+        self._wire_settings()
+        self._wire_live_buttons()
+
+    def _add_live_controls(self) -> None:
+        """The live mode's folders: the simulation, the controller, the hand, the sensors."""
         from .. import scenarios as sc
 
         gui, g = self.server.gui, self._gui
@@ -466,6 +472,11 @@ class ViewServer:
                 "delay [cycles]", min=0, max=20, step=1, initial_value=s.delay_cycles
             )
 
+    def _wire_settings(self) -> None:
+        """The controls that change the settings: each change sent to the simulation, which
+        applies the latest between stretches."""
+        g = self._gui
+
         def settings_changed(_):
             if self._guard:
                 return
@@ -510,6 +521,10 @@ class ViewServer:
             "delay_cycles",
         ):
             g[key].on_update(settings_changed)
+
+    def _wire_live_buttons(self) -> None:
+        """Pause, reset, the scenario, record, the target to the handle, the target typed."""
+        g = self._gui
 
         @g["pause"].on_update
         def _(_):

@@ -471,6 +471,142 @@ def vector_text(x) -> str:
     return "(" + ", ".join(f"{c:g}" for c in np.round(np.asarray(x, dtype=float), 3) + 0.0) + ")"
 
 
+class _PlaneFigure:
+    """plane_figure's drawing, stage by stage, over the rows it draws."""
+
+    def __init__(self, plt, result, force_scale: float):
+        self.plt, self.result = plt, result
+        self.mech = mech = _mechanism(result)
+        self.L = L = _length(mech)
+        self.P = result.cols("px", "py", "pz")
+        self.S = result.cols("sx", "sy", "sz")
+        self.F = result.cols("fx", "fy", "fz")
+        self.F1 = result.cols("ff1x", "ff1y", "ff1z")
+        self.F2 = result.cols("ff2x", "ff2y", "ff2z")
+        self.tips = self.P + L * self.S
+        self.view = VIEWS.get(mech["type"], _view_default)(mech, self.P, self.tips)
+        self.u, self.v = self.view.u, self.view.v
+        self.contacts = result.info.get("grip_contacts", [-0.015, -0.05])
+        self.resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
+        # a PlanarArm's tip is its pivot; a HandlePath holds the handle itself
+        self.draw_tip = mech["type"] not in ("PlanarArm", "HandlePath")
+        self.grip_len = max(0.45 * L, abs(min(self.contacts)) + 0.01)
+        self.scale = float(force_scale)
+        self.t = result.t
+        self.cmap = plt.get_cmap("viridis")
+
+    def uv(self, x):
+        x = np.atleast_2d(x)
+        return np.stack([x @ self.u, x @ self.v], axis=1)
+
+    def paths(self, ax):
+        """The handle's and the tip's paths."""
+        self.hp = hp = self.uv(self.P)
+        ax.plot(hp[:, 0], hp[:, 1], color="0.35", lw=0.8, label="handle path")
+        if self.draw_tip:
+            tp = self.uv(self.tips)
+            ax.plot(tp[:, 0], tp[:, 1], color="tab:brown", lw=0.8, ls="--", label="tip path")
+
+    def moments(self):
+        """The drawn moments: a stroke lying mostly on one drawn before hides it and piles
+        its time label on the other's, so strokes are kept in priority order (the first,
+        the last, the largest force, then in time)."""
+        P, S, L = self.P, self.S, self.L
+        idx = _snapshot_indices(self.result)
+        F_mag = np.linalg.norm(self.F, axis=1)
+        first = [int(idx[0]), int(idx[-1]), int(idx[np.argmax(F_mag[idx])])]
+        strokes = {int(k): self.uv(np.array([P[k] - self.grip_len * S[k], P[k] + 0.08 * L * S[k]]))
+                   for k in idx}
+        frame = np.vstack([self.hp] + list(strokes.values()))
+        tol = 0.02 * float(np.ptp(frame, axis=0).max())
+        self.rank = {k: (first.index(k) if k in first else 3, k) for k in strokes}
+        return np.array(sorted(distinct_strokes(sorted(strokes, key=self.rank.get), strokes, tol)))
+
+    def arrow(self, ax, at, force, color, lw, **kw):
+        f = self.uv(force)[0] * self.scale
+        if np.hypot(*f) > 1e-4 * self.L:
+            ax.annotate("", xy=at + f, xytext=at,
+                        arrowprops=dict(arrowstyle="-|>", color=color, lw=lw), **kw)
+
+    def stroke(self, ax, k: int, c, last: bool):
+        """The handle at cycle k (thick), its virtual probe (dotted), the device's force,
+        and at the last moment of a resisting run the finger forces."""
+        p, s, L = self.P[k], self.S[k], self.L
+        back = self.uv(np.array([p - self.grip_len * s, p + 0.08 * L * s]))
+        ax.plot(back[:, 0], back[:, 1], color=c, lw=5, solid_capstyle="round")
+        probe = self.uv(np.array([p, p + L * s]))
+        ax.plot(probe[:, 0], probe[:, 1], color=c, lw=0.8, ls=":")
+        if self.draw_tip:
+            ax.plot(*probe[1], marker="o", ms=3, color=c)
+        self.arrow(ax, self.uv(p)[0], self.F[k], "crimson", 2.0, zorder=6)
+        if self.resist and last:
+            for cnt, Ff, col in ((self.contacts[0], self.F1[k], "tab:blue"),
+                                 (self.contacts[1], self.F2[k], "tab:green")):
+                self.arrow(ax, self.uv(p + cnt * s)[0], Ff, col, 1.3)
+        return (k, self.uv(p - self.grip_len * s)[0], c)
+
+    def legend_proxies(self, ax):
+        ax.plot([], [], color=self.cmap(0.5), lw=5,
+                label="handle (thick) and virtual probe (dotted)")
+        mm = self.scale * 1e3
+        ax.plot([], [], color="crimson", lw=1.6,
+                label=f"device force (1 N = {mm:.3g} mm, the same in every figure)")
+        if self.resist:
+            ax.plot([], [], color="tab:blue", lw=1.3,
+                    label="finger forces at the end (1: nearer the handle origin)")
+            ax.plot([], [], color="tab:green", lw=1.3, label="finger 2 force")
+
+    def frame(self, ax):
+        """Frames the action: the handle path, the drawn handles, the tips and the
+        mechanism (drawn by its view)."""
+        uv = self.uv
+        pts = [self.hp, uv(self.P - self.grip_len * self.S)] + [uv(a) for a in self.view.anchors]
+        if self.draw_tip:
+            pts.append(uv(self.tips))
+        allp = np.vstack(pts)
+        lo, hi = allp.min(axis=0), allp.max(axis=0)
+        pad = 0.12 * max(hi - lo) + 0.004
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        if self.view.draw is not None:
+            self.view.draw(ax, uv)
+            ax.set_xlim(lo[0] - pad, hi[0] + pad)
+            ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_aspect("equal", adjustable="box")
+
+    def titles(self, fig, ax, norm) -> str:
+        ax.set_xlabel(f"u [m]  (u = {vector_text(self.u)})")
+        ax.set_ylabel(f"v [m]  (v = {vector_text(self.v)})")
+        r = self.result
+        desc = r.scenario.data["description"].split(":")[0].strip()
+        title = textwrap.fill(f"{r.scenario.name}: {desc}", 70) + f"\n{self.view.title}"
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2,
+                  frameon=False)
+        ax.grid(alpha=0.25)
+        sm = self.plt.cm.ScalarMappable(norm=norm, cmap=self.cmap)
+        fig.colorbar(
+            sm, ax=ax, shrink=0.5, fraction=0.04, pad=0.02, label="time of the drawn handle [s]"
+        )
+        return title
+
+    def time_labels(self, fig, ax, labels):
+        """The time labels: the first, the last and the largest force first; none
+        overlapping. Returns the kept labels' window extents."""
+        order = sorted(labels, key=lambda x: self.rank[x[0]])
+        box = dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8)
+        texts = []
+        for k, pos, c in order:
+            away = self.uv(-self.S[k])[0]  # past the handle's end, away from the probe
+            away = away / max(float(np.hypot(*away)), 1e-12)
+            texts.append(
+                ax.annotate(f"{self.t[k]:.2f} s", pos, fontsize=7, color=readable_on_white(c),
+                            textcoords="offset points", xytext=tuple(12 * away), ha="center",
+                            va="center", bbox=box, zorder=8)
+            )
+        return _no_overlap(fig, texts)
+
+
 def plane_figure(
     result,
     path: str | Path,
@@ -490,154 +626,21 @@ def plane_figure(
     from matplotlib.colors import Normalize
 
     result = select_rows(result, "plane", max_points, block_rows)
-    mech = _mechanism(result)
-    L = _length(mech)
-    P = result.cols("px", "py", "pz")
-    S = result.cols("sx", "sy", "sz")
-    F = result.cols("fx", "fy", "fz")
-    F1 = result.cols("ff1x", "ff1y", "ff1z")
-    F2 = result.cols("ff2x", "ff2y", "ff2z")
-    tips = P + L * S
-    view = VIEWS.get(mech["type"], _view_default)(mech, P, tips)
-    u, v = view.u, view.v
-    contacts = result.info.get("grip_contacts", [-0.015, -0.05])
-    resist = any(s["action"] == "resist" for s in result.scenario.data["intent"])
-    # a PlanarArm's tip is its pivot; a HandlePath holds the handle itself
-    draw_tip = mech["type"] not in ("PlanarArm", "HandlePath")
-
-    def uv(x):
-        x = np.atleast_2d(x)
-        return np.stack([x @ u, x @ v], axis=1)
-
-    grip_len = max(0.45 * L, abs(min(contacts)) + 0.01)
-    scale = float(force_scale)
-
+    d = _PlaneFigure(plt, result, force_scale)
     fig, ax = plt.subplots(figsize=(7.0, 7.0), dpi=110, layout="constrained")
-    hp = uv(P)
-    ax.plot(hp[:, 0], hp[:, 1], color="0.35", lw=0.8, label="handle path")
-    if draw_tip:
-        tp = uv(tips)
-        ax.plot(tp[:, 0], tp[:, 1], color="tab:brown", lw=0.8, ls="--", label="tip path")
-    idx = _snapshot_indices(result)
-    cmap = plt.get_cmap("viridis")
-    t = result.t
-    norm = Normalize(0.0, max(float(t[-1]), 1e-9))
-    # a stroke lying mostly on one drawn before hides it and piles its time label on the
-    # other's: kept in priority order (the first, the last, the largest force, then in time)
-    F_mag = np.linalg.norm(F, axis=1)
-    first = [int(idx[0]), int(idx[-1]), int(idx[np.argmax(F_mag[idx])])]
-    strokes = {int(k): uv(np.array([P[k] - grip_len * S[k], P[k] + 0.08 * L * S[k]]))
-               for k in idx}
-    frame = np.vstack([hp] + list(strokes.values()))
-    tol = 0.02 * float(np.ptp(frame, axis=0).max())
-    rank = {k: (first.index(k) if k in first else 3, k) for k in strokes}
-    idx = np.array(sorted(distinct_strokes(sorted(strokes, key=rank.get), strokes, tol)))
-    labels = []
-    for k in idx:
-        c = cmap(norm(t[k]))
-        p, s = P[k], S[k]
-        back = uv(np.array([p - grip_len * s, p + 0.08 * L * s]))
-        ax.plot(back[:, 0], back[:, 1], color=c, lw=5, solid_capstyle="round")
-        probe = uv(np.array([p, p + L * s]))
-        ax.plot(probe[:, 0], probe[:, 1], color=c, lw=0.8, ls=":")
-        if draw_tip:
-            ax.plot(*probe[1], marker="o", ms=3, color=c)
-        f = uv(F[k])[0] * scale
-        pu = uv(p)[0]
-        if np.hypot(*f) > 1e-4 * L:
-            ax.annotate(
-                "",
-                xy=pu + f,
-                xytext=pu,
-                zorder=6,
-                arrowprops=dict(arrowstyle="-|>", color="crimson", lw=2.0),
-            )
-        if resist and k == idx[-1]:
-            for cnt, Ff, col in (
-                (contacts[0], F1[k], "tab:blue"),
-                (contacts[1], F2[k], "tab:green"),
-            ):
-                pc_ = uv(p + cnt * s)[0]
-                ff = uv(Ff)[0] * scale
-                if np.hypot(*ff) > 1e-4 * L:
-                    ax.annotate(
-                        "",
-                        xy=pc_ + ff,
-                        xytext=pc_,
-                        arrowprops=dict(arrowstyle="-|>", color=col, lw=1.3),
-                    )
-        labels.append((k, uv(p - grip_len * s)[0], c))
-    # legend proxies
-    ax.plot([], [], color=cmap(0.5), lw=5, label="handle (thick) and virtual probe (dotted)")
-    mm = scale * 1e3
-    ax.plot(
-        [],
-        [],
-        color="crimson",
-        lw=1.6,
-        label=f"device force (1 N = {mm:.3g} mm, the same in every figure)",
-    )
-    if resist:
-        ax.plot(
-            [],
-            [],
-            color="tab:blue",
-            lw=1.3,
-            label="finger forces at the end (1: nearer the handle origin)",
-        )
-        ax.plot([], [], color="tab:green", lw=1.3, label="finger 2 force")
-    # frame the action: the handle path, the drawn handles, the tips and the mechanism
-    pts = [hp, uv(P - grip_len * S)] + [uv(a) for a in view.anchors]
-    if draw_tip:
-        pts.append(uv(tips))
-    allp = np.vstack(pts)
-    lo, hi = allp.min(axis=0), allp.max(axis=0)
-    pad = 0.12 * max(hi - lo) + 0.004
-    ax.set_xlim(lo[0] - pad, hi[0] + pad)
-    ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    if view.draw is not None:
-        view.draw(ax, uv)
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
-    ax.set_aspect("equal", adjustable="box")
-    ax.set_xlabel(f"u [m]  (u = {vector_text(u)})")
-    ax.set_ylabel(f"v [m]  (v = {vector_text(v)})")
-    desc = result.scenario.data["description"].split(":")[0].strip()
-    title = textwrap.fill(f"{result.scenario.name}: {desc}", 70) + f"\n{view.title}"
-    ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
-    ax.grid(alpha=0.25)
-    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(
-        sm, ax=ax, shrink=0.5, fraction=0.04, pad=0.02, label="time of the drawn handle [s]"
-    )
-    # time labels: the first, the last and the largest force first; none overlapping
-    order = sorted(labels, key=lambda x: rank[x[0]])
-    box = dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8)
-    texts = []
-    for k, pos, c in order:
-        away = uv(-S[k])[0]  # past the handle's end, away from the probe
-        away = away / max(float(np.hypot(*away)), 1e-12)
-        texts.append(
-            ax.annotate(
-                f"{t[k]:.2f} s",
-                pos,
-                fontsize=7,
-                color=readable_on_white(c),
-                textcoords="offset points",
-                xytext=tuple(12 * away),
-                ha="center",
-                va="center",
-                bbox=box,
-                zorder=8,
-            )
-        )
-    kept = _no_overlap(fig, texts)
+    d.paths(ax)
+    idx = d.moments()
+    norm = Normalize(0.0, max(float(d.t[-1]), 1e-9))
+    labels = [d.stroke(ax, k, d.cmap(norm(d.t[k])), k == idx[-1]) for k in idx]
+    d.legend_proxies(ax)
+    d.frame(ax)
+    title = d.titles(fig, ax, norm)
+    kept = d.time_labels(fig, ax, labels)
     fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
     return {
         "title": title,
-        "force_scale_m_per_n": scale,
+        "force_scale_m_per_n": d.scale,
         "time_labels": kept,
         "rows": result.n_cycles,
     }

@@ -20,9 +20,9 @@
 // mj_step1 followed by mj_step2 is mj_step, with the inputs set in between. The hand's plan
 // (anchor, gains, push), the sensor noise and the dropouts are given, one row per cycle.
 //
-// Where each quantity sits in a plan row and in a log row is not declared here: the caller
-// gives the column of each field (PlanLayout, LogLayout), from its one table of columns
-// (virtmech.sim.human.PLAN_COLUMNS and virtmech.sim.log.log_columns in Python).
+// Where each quantity sits in a plan row and in a log row is given by the caller (PlanLayout,
+// LogLayout): the plan's from virtmech.sim.human.PLAN_COLUMNS, the log's from the one table
+// of its columns (log_table.hpp; Python reads the same table).
 #pragma once
 
 #include <mujoco/mujoco.h>
@@ -30,6 +30,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "virtmech/sim/log_table.hpp"
 #include "virtmech/velocity_filter.hpp"
 #include "virtmech/virtmech.hpp"
 
@@ -46,20 +47,15 @@ struct PlanLayout {
   int force = -1, moment = -1, force_in_handle = -1, hand_attached = -1, segment = -1;
 };
 
-/// Column of each field of a log row (the first of its entries; -1: not written). n = the
-/// device's joints, m = the mechanism's. Widths: t 1; q, dq, qm, dqm, tau, tau_motor n;
-/// handle_p 3; stylus 3 (the handle's z axis); twist 6; wrench 6 (device on handle);
-/// status, ramp, iterations, iterations_star 1; theta, theta_star m; e, e_dot, e_star,
-/// e_star_dot, f_null, f_range 6; hand_wrench 6; anchor 3; segment 1.
+/// Column of each field of a log row (the first of its entries; -1: not written), one
+/// member per row of VM_LOG_TABLE (log_table.hpp: widths, names, units); the loop writes the
+/// LOOP rows. With a set, theta and theta_star are the rendered member's (NaN past its
+/// joints, all NaN with none) and member the member rendered (-1: none).
 struct LogLayout {
   int columns = -1;  //!< entries per row
-  int t = -1, q = -1, dq = -1, qm = -1, dqm = -1, handle_p = -1, stylus = -1, twist = -1,
-      wrench = -1, tau = -1, tau_motor = -1, status = -1, ramp = -1, iterations = -1,
-      iterations_star = -1, theta = -1, theta_star = -1, e = -1, e_dot = -1, e_star = -1,
-      e_star_dot = -1, f_null = -1, f_range = -1, hand_wrench = -1, anchor = -1, segment = -1;
-  /// the MechanismSet member rendered (-1: none); with a set, theta and theta_star are the
-  /// rendered member's (NaN past its joints, all NaN with none), m the largest member's
-  int member = -1;
+#define VM_LOG_MEMBER(field, width, names, units, origin) int field = -1;
+  VM_LOG_TABLE(VM_LOG_MEMBER)
+#undef VM_LOG_MEMBER
 };
 
 /// How the device sits in the MuJoCo model, and the simulated driver.

@@ -1,0 +1,64 @@
+// Any serial-chain device ("Device", C++ SerialDevice) as a kind.
+#include "kinds.hpp"
+
+namespace virtmech::kinds {
+
+void add_serial_device(Registry& r) {
+  const DeviceLimits d;
+  DeviceKind k;
+  k.name = "Device";
+  k.doc = "A serial-chain device with any actuation mask.";
+  k.params = {
+      tables_param("joints", joint_fields(), "the chain's joints from its base"),
+      bools_param("actuated", -1, std::nullopt, "one true or false per joint"),
+      array_param("torque_limit", {-1}, std::nullopt, "N·m or N",
+                  "one limit per joint; 0 where passive"),
+      optional(number_param("max_force", std::nullopt, 0.0, 1000.0, "N", "force limit", true)),
+      optional(number_param("max_torque", std::nullopt, 0.0, 1000.0, "N·m", "moment limit",
+                            true)),
+      number_param("stiffness", d.stiffness, 0.0, 1e6, "N/m", "default translational Kp"),
+      number_param("damping", d.damping, 0.0, 1e4, "N·s/m", "default translational Kv"),
+      point_param("handle", Eigen::Vector3d::Zero(), "the handle in the last joint's frame [m]"),
+      array_param("handle_rotation", {3}, std::vector<double>{0.0, 0.0, 0.0}, "rad",
+                  "its rotation vector"),
+      point_param("base_position", Eigen::Vector3d::Zero(), "the chain's base [m]"),
+      array_param("base_rotation", {3}, std::vector<double>{0.0, 0.0, 0.0}, "rad",
+                  "its rotation vector"),
+      string_param("name", std::string("SerialDevice"), {}, "the device's name")};
+  k.type = typeid(SerialDevice);
+  k.make = [](const Params& p) {
+    DeviceLimits L;
+    L.actuated = p.bools("actuated");
+    const Eigen::VectorXd t = p.vector("torque_limit");
+    L.torque_limit.assign(t.data(), t.data() + t.size());
+    L.max_force = p.has("max_force") ? p.number("max_force") : kInf;
+    L.max_torque = p.has("max_torque") ? p.number("max_torque") : kInf;
+    L.stiffness = p.number("stiffness");
+    L.damping = p.number("damping");
+    const KinematicChain chain(pose_from(p.vector3("base_position"), p.vector3("base_rotation")),
+                               joints_from(p.tables("joints")),
+                               pose_from(p.vector3("handle"), p.vector3("handle_rotation")));
+    return std::make_shared<const SerialDevice>(p.string("name"), chain, L);
+  };
+  k.describe = [](const Device& dev) {
+    const auto& d = static_cast<const SerialDevice&>(dev);
+    std::vector<bool> actuated;
+    for (int i = 0; i < d.dof(); ++i) actuated.push_back(d.actuated(i));
+    return Params("Device")
+        .set("name", d.name().c_str())
+        .set("joints", describe_joints(d.chain().joints()))
+        .set("handle", d.chain().handle())
+        .set("base", d.chain().base())
+        .set("actuated", actuated)
+        .set_vector("torque_limit", d.torque_limit())
+        .set_matrix("coupling", d.coupling())
+        .set_vector("coupling_offset", d.coupling_offset())
+        .set("max_force", d.max_force())
+        .set("max_torque", d.max_torque())
+        .set("stiffness", d.stiffness())
+        .set("damping", d.damping());
+  };
+  r.add(std::move(k));
+}
+
+}  // namespace virtmech::kinds
