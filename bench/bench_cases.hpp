@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "test_support.hpp"  // the 6R arm of the C++ tests (tests/cpp)
+#include "bench_models.hpp"
 #include "virtmech/virtmech.hpp"
 
 namespace vmbench {
@@ -100,12 +100,12 @@ inline std::vector<BenchCase> make_cases() {
                                                      Eigen::Vector3d::UnitY(), 0.1,
                                                      Eigen::Vector3d::Zero())),
                    omni_center, omni_amplitude});
-  cases.push_back({"arm6+serial5", std::make_unique<Controller>(vmtest::six_dof_arm(), serial5()),
+  cases.push_back({"arm6+serial5", std::make_unique<Controller>(six_dof_arm(), serial5()),
                    JointVector::Constant(6, 0.3), JointVector::Constant(6, 0.4)});
   // a probe on a NURBS patch under the wandering tip (bump +-1.2 cm about y = 0): the tip
   // passes 5 cm below to 3 cm above it
   const Eigen::Matrix3d H = omni_horizontal();
-  const auto patch = vmtest::test_patch(Eigen::Vector3d(0.0, 0.0, -0.02), H);
+  const auto patch = test_patch(Eigen::Vector3d(0.0, 0.0, -0.02), H);
   cases.push_back({"omni+surface_probe",
                    std::make_unique<Controller>(omni, std::make_shared<SurfaceProbe>(patch, 0.1)),
                    omni_center, omni_amplitude});
@@ -135,10 +135,10 @@ inline std::vector<BenchCase> make_cases() {
   set->add(std::make_shared<Probe>(Eigen::Vector3d(0.0, -0.03, 0.0), Eigen::Vector3d::UnitY(),
                                    0.1, Eigen::Vector3d::Zero(), true));
   const Eigen::Vector3d up = Eigen::Vector3d::UnitY();
-  set->add(std::make_shared<CurveGuide>(vmtest::test_letter(Eigen::Vector3d(0, 0.01, -0.02), H),
+  set->add(std::make_shared<CurveGuide>(test_letter(Eigen::Vector3d(0, 0.01, -0.02), H),
                                         0.1, up));
   set->add(std::make_shared<CurveGuide>(
-      vmtest::test_letter(Eigen::Vector3d(0.03, -0.01, -0.03), H), 0.1, up));
+      test_letter(Eigen::Vector3d(0.03, -0.01, -0.03), H), 0.1, up));
   auto member0 = std::make_unique<Controller>(set->member(0));
   cases.push_back({"omni+set4", std::move(member0), omni_center, omni_amplitude, std::move(set)});
   return cases;

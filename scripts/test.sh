@@ -27,6 +27,21 @@ else
   exit 1
 fi
 
+# the same suites over the core built on <cmath> (its own sine, cosine, atan2, rotation
+# logarithm's series and cycle clock replaced by the library's: docs/performance.md); the
+# allocation-free build above
+# does not depend on it
+echo "== C++: the core on <cmath> (VIRTMECH_STD_MATH=ON): build and GoogleTest"
+cmake -S . -B build/cpp-std-math "${generator[@]}" -DCMAKE_BUILD_TYPE=Release \
+  -DVIRTMECH_BUILD_TESTS=ON -DVIRTMECH_STD_MATH=ON \
+  -DPython_EXECUTABLE="$PWD/.venv/bin/python" >/dev/null
+std_math_tests=(virtmech_tests)
+[ -f build/cpp/tests/cpp/virtmech_sim_tests ] && std_math_tests+=(virtmech_sim_tests)
+cmake --build build/cpp-std-math -j "$jobs" --target "${std_math_tests[@]}"
+for t in "${std_math_tests[@]}"; do
+  build/cpp-std-math/tests/cpp/"$t" --gtest_brief=1
+done
+
 echo "== C++: install, then find_package(virtmech) from a downstream project"
 cmake --install build/cpp >/dev/null
 eigen_prefix="$(.venv/bin/python -c 'import os, sysconfig; print(os.path.join(sysconfig.get_paths()["purelib"], "cmeel.prefix"))')"
@@ -51,6 +66,11 @@ example .venv/bin/python examples/python/01_omni_loop.py
 
 echo "== Python: ruff"
 .venv/bin/ruff check python tests/python tests/reference examples/python
+
+# report only for now (its exit status is not the suite's): every function longer than 80
+# lines or of cyclomatic complexity above 20
+echo "== lizard (report only): functions over 80 lines or cyclomatic complexity 20"
+.venv/bin/lizard -L 80 -C 20 -w src include sim python || true
 
 # the suite (tests marked slow excluded: pyproject.toml's addopts), then the slow ones: the
 # thorough variants of the global-optimum and reference checks and the bench's NumPy column

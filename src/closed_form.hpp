@@ -1,5 +1,7 @@
 // Closed-form placements of probe-like mechanisms (a stylus of length L whose tip is held to
-// a plane or a point, the three wrist joints meeting at the tip). Internal to the core.
+// a plane or a point, the three wrist joints meeting at the tip). Internal to the core; the
+// solvers live in src/closed_form/, one source each (tilt, stylus_direction,
+// stylus_newton, arc, euler_xyz).
 //
 // With weights isotropic within the position block (w_p) and within the rotation block
 // (w_r), the weighted optimum of e^T W e reduces to one angle: for a stylus whose tip-to-
@@ -167,19 +169,26 @@ bool handle_cap_certified(const TipSet& line, const Eigen::Vector3d& p_R,
                           const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
                           double value) noexcept;
 
+/// What a stylus's placement weighs: the handle's position p_R and its stylus's tip-to-
+/// handle direction u_R = -R_R z, the stylus's length L, and the position and rotation
+/// weights (W isotropic within each block).
+struct StylusObjective {
+  Eigen::Vector3d p_R = Eigen::Vector3d::Zero();
+  Eigen::Vector3d u_R = Eigen::Vector3d::Zero();
+  double length = 0.0, w_p = 0.0, w_r = 0.0;
+};
+
 /// The stylus of a probe whose tip is held to a curve C (a CurveGuide): the parameter s and
 /// the tip-to-handle direction u at the local minimum of
 ///   w_p |C(s) + L u - p_R|^2 + w_r angle(u, u_R)^2
 /// reached by Newton's method on R x S^2 with exact second derivatives (C'' included) from
-/// (s, u) as given, u_R = -R_R z (where the Hessian is not positive definite, the
-/// saddle-free step with a backtracking line search; steps capped at a tenth of the stylus
-/// and 0.2 rad). The roll about the stylus drops out as for a line. Returns false (s and u
-/// then undefined) where s would leave the curve's bounds (a stop: the active set is
-/// Gauss-Newton's) or no full Newton step at rounding level ends 12 steps; the caller then
-/// runs Gauss-Newton.
-bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
-                         const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
-                         double& s, Eigen::Vector3d& u) noexcept;
+/// (s, u) as given (where the Hessian is not positive definite, the saddle-free step with a
+/// backtracking line search; steps capped at a tenth of the stylus and 0.2 rad). The roll
+/// about the stylus drops out as for a line. Returns false (s and u then undefined) where s
+/// would leave the curve's bounds (a stop: the active set is Gauss-Newton's) or no full
+/// Newton step at rounding level ends 12 steps; the caller then runs Gauss-Newton.
+bool curve_stylus_newton(const Curve& curve, const StylusObjective& objective, double& s,
+                         Eigen::Vector3d& u) noexcept;
 
 /// The same for a probe whose tip is held to a surface S (a SurfaceProbe in contact): the
 /// parameters uv and the direction u at the local minimum of
@@ -187,8 +196,7 @@ bool curve_stylus_newton(const Curve& curve, const Eigen::Vector3d& p_R,
 /// by the same Newton's method on R^2 x S^2 (S's second derivatives included; steps capped
 /// at a tenth of the stylus of tip motion), the same declines; uv within [lo, hi] (the
 /// mechanism's joint limits: a wrapping u unbounded).
-bool surface_stylus_newton(const Surface& surface, const Eigen::Vector3d& p_R,
-                           const Eigen::Vector3d& u_R, double length, double w_p, double w_r,
+bool surface_stylus_newton(const Surface& surface, const StylusObjective& objective,
                            const Eigen::Vector2d& lo, const Eigen::Vector2d& hi,
                            Eigen::Vector2d& uv, Eigen::Vector3d& u) noexcept;
 

@@ -6,7 +6,6 @@
 
 #include "cycle_clock.hpp"
 #include "flush_denormals.hpp"
-#include "small_products.hpp"
 #include "track_detail.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/se3.hpp"
@@ -93,7 +92,7 @@ void device_kinematics(const Device& dev, ControllerData& d, const double* q, co
   } else {
     dev.forward_jacobian(q, d.handle_pose, d.J_R);
   }
-  d.v_R = detail::jacobian_times(d.J_R, dq);
+  d.v_R.noalias() = d.J_R * Eigen::Map<const JointVector>(dq, d.J_R.cols());
 }
 
 // J without the columns of the joints in `active`.
@@ -133,7 +132,8 @@ void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
   const TrackOptions& opts = first ? M.track_initial : M.track;
   const JointVector theta0 = placement_start(M, mech, target, W, first, p);
   JointVector theta;
-  p.result = detail::track(mech, target, theta0, W, opts, theta, p.pose, p.J, p.error);
+  p.result = detail::track(mech, target, opts, PlacementIO{&W, &theta0, &theta, &p.pose, &p.J,
+                                                            &p.error});
   placed(mech, first, theta, p);
 }
 
@@ -420,7 +420,7 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
   advance_ramp(M, d, out);
   f *= scale * out.ramp;
 
-  detail::jacobian_transpose_times(d.J_R, f, out.torque);  // eq. 8
+  out.torque.noalias() = d.J_R.transpose() * f;  // eq. 8
   double tscale = 1.0;
   for (int i = 0; i < n; ++i) {
     if (!dev.actuated(i)) {

@@ -2,11 +2,15 @@
 // time-stamp counter where it is invariant (x86-64 with CPUID's invariant-TSC bit; the
 // Linux "constant_tsc nonstop_tsc" flags), else std::chrono::steady_clock. One read of the
 // counter costs a few nanoseconds where a steady_clock read costs about 20 (a vDSO call);
-// a cycle takes two (docs/performance.md).
+// a cycle takes two, and with steady_clock the Omni + PlanarArm cycle takes 9 % longer,
+// Omni + Probe's 5 % (docs/performance.md, "Hand-made routines"). A core built on <cmath> and steady_clock
+// alone (VIRTMECH_STD_MATH) uses steady_clock everywhere.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
+
+#include "std_math.hpp"
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <cpuid.h>
@@ -21,7 +25,7 @@ class CycleClock {
   /// The clock's ticks now (the time-stamp counter, or steady_clock's nanoseconds).
   static std::uint64_t now() noexcept {
 #ifdef VIRTMECH_CYCLE_CLOCK_TSC
-    if (scale().tsc) return __rdtsc();
+    if (!kStdMath && scale().tsc) return __rdtsc();
 #endif
     return static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
                                           std::chrono::steady_clock::now().time_since_epoch())
@@ -48,6 +52,7 @@ class CycleClock {
   static Scale measure() noexcept {
     Scale s;
 #ifdef VIRTMECH_CYCLE_CLOCK_TSC
+    if (kStdMath) return s;
     unsigned a = 0, b = 0, c = 0, d = 0;
     if (__get_cpuid(0x80000000u, &a, &b, &c, &d) == 0 || a < 0x80000007u) return s;
     __cpuid(0x80000007u, a, b, c, d);

@@ -218,46 +218,45 @@ void WeightedProjector::set_column() noexcept {
   inv_jwj_ = rank_ ? 1.0 / jwj : 0.0;
 }
 
-// True when the Gram matrix G = A_w A_w^T of A's k weighted rows shows them of full row rank
-// with a margin: lambda_min(G) >= det(G) / (tr(G) / (k - 1))^(k - 1) (the other k - 1
-// eigenvalues' product is at most that, by AM-GM) above 1e-11 tr(G), i.e. sigma_k(A) >
-// 3e-6 |A|_F, where the QR's cut is 1e-10 |R_00| <= 1e-10 |A|_F: the QR would find rank k
-// (after j < k steps the remaining columns' norms reach sigma_k / sqrt(m)). det(G) from
-// an LDL^T of G / tr(G) (relative errors ~ k eps kappa(G) <= 1e-4 here).
-bool WeightedProjector::full_row_rank_certified() const noexcept {
-  const int k = support_, m = m_;
-  if (!finite_ || k == 0 || k > m) return false;
-  // every entry finite, the zero-weighted rows' too (a factorisation would find 0 * NaN and
-  // give NaN results, as documented)
-  if (!J_.leftCols(m).allFinite()) return false;
+namespace {
+
+// G = A_w A_w^T for the k rows of s > 0 of A = diag(s) J (J's first m columns), its lower
+// triangle; returns tr(G)
+double weighted_gram(const Eigen::Matrix<double, 6, kMaxDof>& J, const Vector6& s, int m,
+                     int k, double (&G)[6][6]) noexcept {
   int rows[6];
   int c = 0;
   for (int i = 0; i < 6; ++i) {
-    if (s_[i] > 0.0) rows[c++] = i;
+    if (s[i] > 0.0) rows[c++] = i;
   }
-  double G[6][6];
   double tr = 0.0;
   for (int a = 0; a < k; ++a) {
     for (int b = 0; b <= a; ++b) {
       double g = 0.0;
-      for (int j = 0; j < m; ++j) g += J_(rows[a], j) * J_(rows[b], j);
-      G[a][b] = s_[rows[a]] * s_[rows[b]] * g;
+      for (int j = 0; j < m; ++j) g += J(rows[a], j) * J(rows[b], j);
+      G[a][b] = s[rows[a]] * s[rows[b]] * g;
     }
     tr += G[a][a];
   }
-  if (!(tr > 0.0) || !std::isfinite(tr)) return false;  // also NaN
-  if (k <= 3) {
-    // det(G) by cofactors, without the factorisation's chain of divisions: G is a Gram
-    // matrix (eigenvalues >= -eps tr by rounding), so det(G) > 1e-11 tr^k / (k - 1)^(k - 1)
-    // >> eps^2 tr^k rules out a pair of negative ones: G is positive definite, as the LDL^T
-    // below checks, and its determinant has errors of a few eps tr^k
-    if (k == 1) return true;
-    if (k == 2) return G[0][0] * G[1][1] - G[1][0] * G[1][0] > 1e-11 * tr * tr;
-    const double det3 = G[0][0] * (G[1][1] * G[2][2] - G[2][1] * G[2][1]) -
-                        G[1][0] * (G[1][0] * G[2][2] - G[2][1] * G[2][0]) +
-                        G[2][0] * (G[1][0] * G[2][1] - G[1][1] * G[2][0]);
-    return 4.0 * det3 > 1e-11 * tr * tr * tr;
-  }
+  return tr;
+}
+
+// det(G) by cofactors (k <= 3), without the factorisation's chain of divisions: G is a Gram
+// matrix (eigenvalues >= -eps tr by rounding), so det(G) > 1e-11 tr^k / (k - 1)^(k - 1)
+// >> eps^2 tr^k rules out a pair of negative ones: G is positive definite, as the LDL^T
+// of gram_certified_ldl checks, and its determinant has errors of a few eps tr^k
+bool gram_certified_cofactors(const double (&G)[6][6], int k, double tr) noexcept {
+  if (k == 1) return true;
+  if (k == 2) return G[0][0] * G[1][1] - G[1][0] * G[1][0] > 1e-11 * tr * tr;
+  const double det3 = G[0][0] * (G[1][1] * G[2][2] - G[2][1] * G[2][1]) -
+                      G[1][0] * (G[1][0] * G[2][2] - G[2][1] * G[2][0]) +
+                      G[2][0] * (G[1][0] * G[2][1] - G[1][1] * G[2][0]);
+  return 4.0 * det3 > 1e-11 * tr * tr * tr;
+}
+
+// det(G / tr) from an LDL^T of G / tr (false where a pivot is not positive), then
+// lambda_min / tr >= det_n (k - 1)^(k - 1) > 1e-11
+bool gram_certified_ldl(const double (&G)[6][6], int k, double tr) noexcept {
   double L[6][6], D[6], det = 1.0;
   for (int j = 0; j < k; ++j) {
     double d = G[j][j] / tr;
@@ -271,10 +270,29 @@ bool WeightedProjector::full_row_rank_certified() const noexcept {
       L[i][j] = l / d;
     }
   }
-  // lambda_min / tr >= det_n (k - 1)^(k - 1), det_n = det(G / tr)
   double spread = 1.0;
   for (int i = 1; i < k; ++i) spread *= static_cast<double>(k - 1);
   return det * spread > 1e-11;
+}
+
+}  // namespace
+
+// True when the Gram matrix G = A_w A_w^T of A's k weighted rows shows them of full row rank
+// with a margin: lambda_min(G) >= det(G) / (tr(G) / (k - 1))^(k - 1) (the other k - 1
+// eigenvalues' product is at most that, by AM-GM) above 1e-11 tr(G), i.e. sigma_k(A) >
+// 3e-6 |A|_F, where the QR's cut is 1e-10 |R_00| <= 1e-10 |A|_F: the QR would find rank k
+// (after j < k steps the remaining columns' norms reach sigma_k / sqrt(m)). det(G) from
+// an LDL^T of G / tr(G) (relative errors ~ k eps kappa(G) <= 1e-4 here).
+bool WeightedProjector::full_row_rank_certified() const noexcept {
+  const int k = support_, m = m_;
+  if (!finite_ || k == 0 || k > m) return false;
+  // every entry finite, the zero-weighted rows' too (a factorisation would find 0 * NaN and
+  // give NaN results, as documented)
+  if (!J_.leftCols(m).allFinite()) return false;
+  double G[6][6];
+  const double tr = weighted_gram(J_, s_, m, k, G);
+  if (!(tr > 0.0) || !std::isfinite(tr)) return false;  // also NaN
+  return k <= 3 ? gram_certified_cofactors(G, k, tr) : gram_certified_ldl(G, k, tr);
 }
 
 void WeightedProjector::factorise() const noexcept {

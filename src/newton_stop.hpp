@@ -1,4 +1,6 @@
-// When a Newton iteration may stop short of its last, rounding-level step.
+// When a Newton iteration may stop short of its last, rounding-level step: part of the
+// placements' algorithms (it decides where they stop), not a replacement of a library
+// routine (docs/performance.md, "Hand-made routines"). Internal to the core.
 #pragma once
 
 namespace virtmech::detail {

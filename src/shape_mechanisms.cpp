@@ -382,8 +382,9 @@ bool SurfaceProbe::place_on_surface(const Pose& target, double w_p, double w_r,
   surface_basis(*surface_, uv[0], uv[1], d, f.B);
   Eigen::Vector3d u = detail::wrist_direction(f.B, start.data() + wrist);  // tip to handle
   const Eigen::Vector2d lo(lower()[0], lower()[1]), hi(upper()[0], upper()[1]);
-  if (!detail::surface_stylus_newton(*surface_, target.translation(), -target.linear().col(2),
-                                     length_, w_p, w_r, lo, hi, uv, u)) {
+  const detail::StylusObjective objective{target.translation(), -target.linear().col(2), length_,
+                                          w_p, w_r};
+  if (!detail::surface_stylus_newton(*surface_, objective, lo, hi, uv, u)) {
     // declined from a contact start: the handle may have lifted the tip off
     if (!unilateral_ || !(start[2] == 0.0)) return false;
     uv = Eigen::Vector2d(start[0], start[1]);
@@ -444,8 +445,9 @@ bool CurveGuide::place(const Pose& target, const Vector6& w, const JointVector& 
   if (!detail::isotropic_blocks(w, w_p, w_r)) return false;
   double s = start[0];
   Eigen::Vector3d u = detail::wrist_direction(base_, start.data() + 1);  // tip to handle
-  if (!detail::curve_stylus_newton(*curve_, target.translation(), -target.linear().col(2),
-                                   length_, w_p, w_r, s, u)) {
+  const detail::StylusObjective objective{target.translation(), -target.linear().col(2), length_,
+                                          w_p, w_r};
+  if (!detail::curve_stylus_newton(*curve_, objective, s, u)) {
     return false;
   }
   Eigen::Vector3d turn;

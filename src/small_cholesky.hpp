@@ -1,6 +1,6 @@
-// Cholesky factorisation, solve and inverse for the core's small joint-space matrices
-// (n <= kMaxDof), written as plain loops: at these sizes Eigen's general (blocked) paths
-// cost more than the arithmetic. Internal to the core.
+// Cholesky factorisation and solve for the Gauss-Newton placement's small joint-space
+// matrices (n <= kMaxDof), written as plain loops: at these sizes Eigen's LLT costs more
+// than the arithmetic (docs/performance.md, "Hand-made routines"). Internal to the core.
 #pragma once
 
 #include <cmath>
@@ -41,31 +41,6 @@ inline void cholesky_solve_in_place(const JointMatrix& L, JointVector& b) noexce
     double s = b[i];
     for (Eigen::Index k = i + 1; k < n; ++k) s -= L(k, i) * b[k];
     b[i] = s / L(i, i);
-  }
-}
-
-/// (L L^T)^-1, symmetric, from L (cholesky_in_place).
-inline void cholesky_inverse(const JointMatrix& L, JointMatrix& A_inv) noexcept {
-  const Eigen::Index n = L.rows();
-  // M = L^-1 (lower triangular), column by column
-  JointMatrix M = JointMatrix::Zero(n, n);
-  for (Eigen::Index j = 0; j < n; ++j) {
-    M(j, j) = 1.0 / L(j, j);
-    for (Eigen::Index i = j + 1; i < n; ++i) {
-      double s = 0.0;
-      for (Eigen::Index k = j; k < i; ++k) s -= L(i, k) * M(k, j);
-      M(i, j) = s / L(i, i);
-    }
-  }
-  // A^-1 = M^T M
-  A_inv.resize(n, n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    for (Eigen::Index j = 0; j <= i; ++j) {
-      double s = 0.0;
-      for (Eigen::Index k = i; k < n; ++k) s += M(k, i) * M(k, j);
-      A_inv(i, j) = s;
-      A_inv(j, i) = s;
-    }
   }
 }
 

@@ -6,7 +6,6 @@
 #include <utility>
 
 #include "small_cholesky.hpp"
-#include "small_products.hpp"
 #include "track_detail.hpp"
 #include "trig.hpp"
 #include "virtmech/se3.hpp"
@@ -63,7 +62,7 @@ inline void evaluate(const Mechanism& m, const Pose& target, const JointVector& 
   ev.cost = ev.e.dot(We);
   ev.mapped = error_derivative(ev.J, ev.e, W, ev.D_mapped);
   // eq. 23's residual; -1/2 of the cost gradient
-  detail::jacobian_transpose_times(ev.D(), We, ev.g);
+  ev.g.noalias() = ev.D().transpose() * We;
 }
 
 inline double cost_at(const Mechanism& m, const Pose& target, const JointVector& theta,
@@ -115,7 +114,8 @@ TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVec
   Pose pose;
   Jacobian J;
   Vector6 error;
-  return detail::track(mechanism, target, theta0, weights, options, theta, pose, J, error);
+  return detail::track(mechanism, target, options,
+                       PlacementIO{&weights, &theta0, &theta, &pose, &J, &error});
 }
 
 TrackResult detail::closed_form_result(const Mechanism& mechanism, const Vector6& weights,
@@ -133,144 +133,189 @@ TrackResult detail::closed_form_result(const Mechanism& mechanism, const Vector6
   if (on_bound) {
     JointVector g;
     Jacobian D;
-    detail::jacobian_transpose_times(error_derivative(J, error, weights, D) ? D : J, We, g);
+    g.noalias() = (error_derivative(J, error, weights, D) ? D : J).transpose() * We;
     result.active = active_set(mechanism, theta, g, result.active_upper);
   }
   return result;
 }
 
-TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
-                          const JointVector& theta0, const Vector6& weights,
-                          const TrackOptions& options, JointVector& theta, Pose& pose,
-                          Jacobian& J, Vector6& error) noexcept {
-  const int n = mechanism.dof();
-  TrackResult result;
-  if (options.closed_form && mechanism.place(target, weights, theta0, theta, pose, J, error)) {
-    return closed_form_result(mechanism, weights, theta, J, error);
+namespace {
+
+// Projected, damped Gauss-Newton (eqs. 18-20) from a start: its buffers, allocated once per
+// placement on the stack (fixed capacity), and its stages.
+class GaussNewton {
+ public:
+  GaussNewton(const Mechanism& mechanism, const Pose& target, const Vector6& weights,
+              const TrackOptions& options) noexcept
+      : m_(mechanism), target_(target), W_(weights), options_(options), n_(mechanism.dof()),
+        step_cap_(n_), H_(n_, n_), L_(n_, n_), delta_(n_), trial_(n_), extrapolated_(n_) {
+    for (int i = 0; i < n_; ++i) {
+      step_cap_[i] = m_.joint_type(i) == JointType::kRevolute
+                         ? options_.max_step
+                         : options_.max_step_prismatic * m_.length_scale();
+    }
   }
-  theta = theta0;
-  clamp_to_limits(mechanism, theta);
-  JointVector step_cap(n);
-  for (int i = 0; i < n; ++i) {
-    step_cap[i] = mechanism.joint_type(i) == JointType::kRevolute
-                      ? options.max_step
-                      : options.max_step_prismatic * mechanism.length_scale();
-  }
 
-  // three evaluations, swapped rather than copied as a trial is accepted
-  Eval evals[3];
-  Eval* ev = &evals[0];
-  Eval* trial_ev = &evals[1];
-  Eval* extrapolated_ev = &evals[2];
-  evaluate(mechanism, target, theta, weights, *ev);
-  JointMatrix H(n, n), L(n, n);
-  JointVector delta(n), trial(n), extrapolated(n);
-
-  for (int it = 0; it < options.max_iterations; ++it) {
-    // joints on a bound the cost pushes against stay there (projected Gauss-Newton: their
-    // gradient entries and columns leave the step, so the others' step is the constrained
-    // problem's, not an unconstrained one clipped)
-    std::uint32_t upper;
-    const std::uint32_t locked = active_set(mechanism, theta, ev->g, upper);
-    JointVector& g_free = trial;  // scratch until the step is taken
-    g_free = ev->g;
-    for (int i = 0; i < n; ++i) {
-      if (locked & (1u << i)) g_free[i] = 0.0;
-    }
-    if (g_free.cwiseAbs().maxCoeff() <= options.gradient_tolerance) {
-      result.converged = true;
-      break;
-    }
-    // eq. 18: delta = (J^T W J)^-1 J^T W (X_R - X_V), damped so rank-deficient J^T W J
-    // gives the minimum-norm step
-    const Jacobian WJ = weights.asDiagonal() * ev->D();
-    H.noalias() = ev->D().transpose() * WJ;
-    H.diagonal().array() += options.damping * (H.trace() / n) + 1e-300;
-    for (int i = 0; i < n; ++i) {
-      if (!(locked & (1u << i))) continue;
-      H.row(i).setZero();
-      H.col(i).setZero();
-      H(i, i) = 1.0;
-    }
-    L = H;
-    delta = g_free;
-    if (detail::cholesky_in_place(L)) {
-      detail::cholesky_solve_in_place(L, delta);
-    } else {
-      delta = Eigen::LLT<JointMatrix>(H).solve(g_free);  // not positive definite (NaN, ...)
-    }
-    double scale = 1.0;
-    for (int i = 0; i < n; ++i) {
-      const double a = std::abs(delta[i]);
-      if (a > step_cap[i]) scale = std::min(scale, step_cap[i] / a);
-    }
-    delta *= scale;
-    result.iterations = it + 1;
-    const double slope0 = g_free.dot(delta);  // > 0: delta descends the weighted cost
-
-    if (scale == 1.0 && delta.cwiseQuotient(step_cap).cwiseAbs().maxCoeff() < 1e-4) {
-      // near the solution cost differences are at rounding level: take the step, then go
-      // to the zero of the directional derivative along delta (secant) if it changed sign,
-      // or if it kept a good part of its value: Gauss-Newton then converges only linearly
-      // (a residual that cannot vanish, as a 5-joint mechanism held to a 6-D pose), and the
-      // secant extrapolation removes the slow component
-      trial = theta + delta;
-      clamp_to_limits(mechanism, trial);
-      evaluate(mechanism, target, trial, weights, *trial_ev);
-      const double slope1 = trial_ev->g.dot(delta);
-      if (slope0 > 0.0 && slope1 < 0.0) {
-        trial = theta + (slope0 / (slope0 - slope1)) * delta;
-        clamp_to_limits(mechanism, trial);
-        evaluate(mechanism, target, trial, weights, *trial_ev);
-      } else if (slope0 > 0.0 && slope1 >= kSecantMinRatio * slope0 &&
-                 slope1 <= kSecantMaxRatio * slope0) {
-        extrapolated = theta + (slope0 / (slope0 - slope1)) * delta;
-        clamp_to_limits(mechanism, extrapolated);
-        evaluate(mechanism, target, extrapolated, weights, *extrapolated_ev);
-        if (std::abs(extrapolated_ev->g.dot(delta)) < slope1) {  // kept only if it helped
-          trial = extrapolated;
-          std::swap(trial_ev, extrapolated_ev);
-        }
+  // Iterates from theta (clamped to the limits) to the placement, written to theta; the
+  // last evaluation (at theta) in `last`.
+  TrackResult run(JointVector& theta, const Eval*& last) noexcept {
+    TrackResult result;
+    clamp_to_limits(m_, theta);
+    evaluate(m_, target_, theta, W_, *ev_);
+    for (int it = 0; it < options_.max_iterations; ++it) {
+      // joints on a bound the cost pushes against stay there (projected Gauss-Newton: their
+      // gradient entries and columns leave the step, so the others' step is the
+      // constrained problem's, not an unconstrained one clipped)
+      std::uint32_t upper;
+      const std::uint32_t locked = active_set(m_, theta, ev_->g, upper);
+      JointVector& g_free = trial_;  // scratch until the step is taken
+      g_free = ev_->g;
+      for (int i = 0; i < n_; ++i) {
+        if (locked & (1u << i)) g_free[i] = 0.0;
       }
-    } else {
-      // far from it the linearisation of eq. 16 is only local: backtrack on the cost
-      double alpha = 1.0;
-      bool accepted = false;
-      for (int k = 0; k < kBacktracks; ++k) {
-        trial = theta + alpha * delta;
-        clamp_to_limits(mechanism, trial);
-        if (cost_at(mechanism, target, trial, weights) <= ev->cost) {
-          accepted = true;
-          break;
-        }
-        alpha *= 0.5;
-      }
-      if (!accepted) {  // no descent along delta: a (constrained) minimum
+      if (g_free.cwiseAbs().maxCoeff() <= options_.gradient_tolerance) {
         result.converged = true;
         break;
       }
-      evaluate(mechanism, target, trial, weights, *trial_ev);
+      const double scale = gauss_newton_step(locked, g_free);
+      result.iterations = it + 1;
+      const double slope0 = g_free.dot(delta_);  // > 0: delta descends the weighted cost
+      if (scale == 1.0 && delta_.cwiseQuotient(step_cap_).cwiseAbs().maxCoeff() < 1e-4) {
+        step_and_secant(theta, slope0);
+      } else if (!backtracked(theta)) {  // no descent along delta: a (constrained) minimum
+        result.converged = true;
+        break;
+      }
+      const double moved = (trial_ - theta).cwiseAbs().maxCoeff();
+      theta = trial_;  // eq. 20
+      std::swap(ev_, trial_ev_);
+      if (moved <= options_.step_tolerance) {
+        result.converged = true;
+        break;
+      }
     }
-    const double moved = (trial - theta).cwiseAbs().maxCoeff();
-    theta = trial;  // eq. 20
-    std::swap(ev, trial_ev);
-    if (moved <= options.step_tolerance) {
-      result.converged = true;
-      break;
+    finish(theta, result);
+    last = ev_;
+    return result;
+  }
+
+ private:
+  // eq. 18: delta = (J^T W J)^-1 J^T W (X_R - X_V), damped so rank-deficient J^T W J gives
+  // the minimum-norm step, the locked joints' rows and columns out; scaled to the step caps
+  // (returns the scale)
+  double gauss_newton_step(std::uint32_t locked, const JointVector& g_free) noexcept {
+    const Jacobian WJ = W_.asDiagonal() * ev_->D();
+    H_.noalias() = ev_->D().transpose() * WJ;
+    H_.diagonal().array() += options_.damping * (H_.trace() / n_) + 1e-300;
+    for (int i = 0; i < n_; ++i) {
+      if (!(locked & (1u << i))) continue;
+      H_.row(i).setZero();
+      H_.col(i).setZero();
+      H_(i, i) = 1.0;
+    }
+    L_ = H_;
+    delta_ = g_free;
+    if (detail::cholesky_in_place(L_)) {
+      detail::cholesky_solve_in_place(L_, delta_);
+    } else {
+      delta_ = Eigen::LLT<JointMatrix>(H_).solve(g_free);  // not positive definite (NaN, ...)
+    }
+    double scale = 1.0;
+    for (int i = 0; i < n_; ++i) {
+      const double a = std::abs(delta_[i]);
+      if (a > step_cap_[i]) scale = std::min(scale, step_cap_[i] / a);
+    }
+    delta_ *= scale;
+    return scale;
+  }
+
+  // Near the solution cost differences are at rounding level: take the step, then go to
+  // the zero of the directional derivative along delta (secant) if it changed sign, or if
+  // it kept a good part of its value: Gauss-Newton then converges only linearly (a residual
+  // that cannot vanish, as a 5-joint mechanism held to a 6-D pose), and the secant
+  // extrapolation removes the slow component. The trial point in trial_ (trial_ev_).
+  void step_and_secant(const JointVector& theta, double slope0) noexcept {
+    trial_ = theta + delta_;
+    clamp_to_limits(m_, trial_);
+    evaluate(m_, target_, trial_, W_, *trial_ev_);
+    const double slope1 = trial_ev_->g.dot(delta_);
+    if (slope0 > 0.0 && slope1 < 0.0) {
+      trial_ = theta + (slope0 / (slope0 - slope1)) * delta_;
+      clamp_to_limits(m_, trial_);
+      evaluate(m_, target_, trial_, W_, *trial_ev_);
+    } else if (slope0 > 0.0 && slope1 >= kSecantMinRatio * slope0 &&
+               slope1 <= kSecantMaxRatio * slope0) {
+      extrapolated_ = theta + (slope0 / (slope0 - slope1)) * delta_;
+      clamp_to_limits(m_, extrapolated_);
+      evaluate(m_, target_, extrapolated_, W_, *extrapolated_ev_);
+      if (std::abs(extrapolated_ev_->g.dot(delta_)) < slope1) {  // kept only if it helped
+        trial_ = extrapolated_;
+        std::swap(trial_ev_, extrapolated_ev_);
+      }
     }
   }
-  result.active = active_set(mechanism, theta, ev->g, result.active_upper);
-  if (!result.converged) {
-    trial = ev->g;  // the projected gradient
-    for (int i = 0; i < n; ++i) {
-      if (result.active & (1u << i)) trial[i] = 0.0;
+
+  // Far from it the linearisation of eq. 16 is only local: backtrack on the cost. The
+  // trial point in trial_ (trial_ev_); false where no step along delta descends.
+  bool backtracked(const JointVector& theta) noexcept {
+    double alpha = 1.0;
+    for (int k = 0; k < kBacktracks; ++k) {
+      trial_ = theta + alpha * delta_;
+      clamp_to_limits(m_, trial_);
+      if (cost_at(m_, target_, trial_, W_) <= ev_->cost) {
+        evaluate(m_, target_, trial_, W_, *trial_ev_);
+        return true;
+      }
+      alpha *= 0.5;
     }
-    result.converged = trial.cwiseAbs().maxCoeff() <= options.gradient_tolerance;
+    return false;
   }
-  result.residual = std::sqrt(std::max(ev->cost, 0.0));
-  pose = ev->T;  // ev is always the evaluation at theta
-  J = ev->J;
-  error = ev->e;
+
+  // the active set at theta; where no tolerance was met, converged if the projected
+  // gradient meets the gradient tolerance; the residual
+  void finish(const JointVector& theta, TrackResult& result) noexcept {
+    result.active = active_set(m_, theta, ev_->g, result.active_upper);
+    if (!result.converged) {
+      trial_ = ev_->g;  // the projected gradient
+      for (int i = 0; i < n_; ++i) {
+        if (result.active & (1u << i)) trial_[i] = 0.0;
+      }
+      result.converged = trial_.cwiseAbs().maxCoeff() <= options_.gradient_tolerance;
+    }
+    result.residual = std::sqrt(std::max(ev_->cost, 0.0));
+  }
+
+  const Mechanism& m_;
+  const Pose& target_;
+  const Vector6& W_;
+  const TrackOptions& options_;
+  const int n_;
+  JointVector step_cap_;
+  // three evaluations, swapped rather than copied as a trial is accepted; ev_ is always
+  // the evaluation at theta
+  Eval evals_[3];
+  Eval* ev_ = &evals_[0];
+  Eval* trial_ev_ = &evals_[1];
+  Eval* extrapolated_ev_ = &evals_[2];
+  JointMatrix H_, L_;
+  JointVector delta_, trial_, extrapolated_;
+};
+
+}  // namespace
+
+TrackResult detail::track(const Mechanism& mechanism, const Pose& target,
+                          const TrackOptions& options, const PlacementIO& io) noexcept {
+  if (options.closed_form && mechanism.place(target, *io.w, *io.start, *io.theta, *io.T, *io.J,
+                                             *io.e)) {
+    return closed_form_result(mechanism, *io.w, *io.theta, *io.J, *io.e);
+  }
+  *io.theta = *io.start;
+  GaussNewton solver(mechanism, target, *io.w, options);
+  const Eval* last = nullptr;
+  const TrackResult result = solver.run(*io.theta, last);
+  *io.T = last->T;
+  *io.J = last->J;
+  *io.e = last->e;
   return result;
 }
 

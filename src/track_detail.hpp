@@ -7,11 +7,11 @@
 
 namespace virtmech::detail {
 
-/// track() that also returns the handle pose and the Jacobian of the mechanism at theta,
-/// and the error pose_error(target, pose).
-TrackResult track(const Mechanism& mechanism, const Pose& target, const JointVector& theta0,
-                  const Vector6& weights, const TrackOptions& options, JointVector& theta,
-                  Pose& pose, Jacobian& J, Vector6& error) noexcept;
+/// track() with the weights *io.w from *io.start into *io.theta, that also returns the
+/// handle pose *io.T and the Jacobian *io.J of the mechanism at theta, and the error
+/// *io.e = pose_error(target, pose).
+TrackResult track(const Mechanism& mechanism, const Pose& target, const TrackOptions& options,
+                  const PlacementIO& io) noexcept;
 
 /// What track() reports for a closed-form placement (Mechanism::place or place_pair): theta
 /// with J and error there, converged, its residual and the joints held at a limit.

@@ -1,9 +1,10 @@
 // Sine and cosine, and atan2, for the servo cycle. glibc's are correctly rounded and cost
-// more (in Omni + PlanarArm's cycle, which calls each six times: atan2 about twice these,
-// sine and cosine about 1.3 times; docs/performance.md); these stay within 2 ulp of the
+// more (docs/performance.md, "Hand-made routines"); these stay within 2 ulp of the
 // exact values (tests/cpp/test_trig.cpp checks them against long double). Arguments beyond
 // what the reductions below serve go to the library's. The coefficients and constants are
-// scripts/trig_fits.py's (mpmath, 50 digits). Internal to the core.
+// scripts/trig_fits.py's (mpmath, 50 digits; tests/python/test_trig_fits.py regenerates and
+// compares them). A core built on <cmath> (VIRTMECH_STD_MATH) uses the library's instead.
+// Internal to the core.
 #pragma once
 
 #if defined(__FAST_MATH__)
@@ -13,12 +14,14 @@
 #include <algorithm>
 #include <cmath>
 
+#include "std_math.hpp"
+
 namespace virtmech::detail {
 
 /// sin x and cos x. For |x| <= 1e3: x = k pi/2 + r with |r| <= pi/4, then r + r^3 S(r^2) and
 /// 1 - r^2/2 + r^4 C(r^2), S and C Chebyshev fits of degree 5 on that interval (their
 /// errors, times r^2 and r^4, below 2e-17); beyond, std::sin and std::cos.
-inline void sincos(double x, double& s, double& c) noexcept {
+inline void sincos_by_fit(double x, double& s, double& c) noexcept {
   if (!(std::abs(x) <= 1e3) || x == 0.0) {  // (NaN, infinities and signed zeros: there)
     s = std::sin(x);
     c = std::cos(x);
@@ -70,7 +73,7 @@ inline double atan_series(double z) noexcept {
 constexpr double kAtanSeriesMaxZ = 0.25;
 
 /// atan2(y, x) in [-pi, pi]: std::atan2's value to 2 ulp, and its signs of zero.
-inline double atan2(double y, double x) noexcept {
+inline double atan2_by_fit(double y, double x) noexcept {
   const double ax = std::abs(x), ay = std::abs(y);
   const double hi = std::max(ax, ay), lo = std::min(ax, ay);
   if (!(ax < 1e300 && ay < 1e300 && hi > 1e-300)) return std::atan2(y, x);  // (NaN: here)
@@ -98,6 +101,25 @@ inline double atan2(double y, double x) noexcept {
   }
   const double r = kHi[k] + (s * u + (s * u * z * P + kLo[k]));
   return std::copysign(r, y);
+}
+
+/// The cycle's sine and cosine: sincos_by_fit, or the library's in a core built on <cmath>.
+inline void sincos(double x, double& s, double& c) noexcept {
+  if constexpr (kStdMath) {
+    s = std::sin(x);
+    c = std::cos(x);
+  } else {
+    sincos_by_fit(x, s, c);
+  }
+}
+
+/// The cycle's atan2: atan2_by_fit, or the library's in a core built on <cmath>.
+inline double atan2(double y, double x) noexcept {
+  if constexpr (kStdMath) {
+    return std::atan2(y, x);
+  } else {
+    return atan2_by_fit(y, x);
+  }
 }
 
 }  // namespace virtmech::detail

@@ -26,6 +26,12 @@ namespace virtmech {
 constexpr int kMaxNurbsDegree = 7;
 /// Largest derivative order `derivatives` computes.
 constexpr int kMaxDerivativeOrder = kMaxNurbsDegree;
+/// Largest number of closest-point samples a NurbsSurface takes (max(8, 2 degree) per
+/// non-empty knot span and direction, plus one, in u times in v: 1577 x 1577 for 200 x 200
+/// control points of degree 3). The samples, their cells and the cells' hierarchy take
+/// about 230 bytes a sample (about 1 GB at the limit), and the constructor's time grows with
+/// them (about 20 s for 200 x 200 points): a larger surface is refused.
+constexpr long kMaxNurbsSurfaceSamples = 1L << 22;
 
 /// Column k: the k-th derivative d^k C / du^k (column 0 the point).
 using CurveDerivatives = Eigen::Matrix<double, 3, kMaxDerivativeOrder + 1>;
@@ -131,6 +137,9 @@ class NurbsCurve final : public Curve {
   void homogeneous_from_basis(double u, int span, int nd,
                               Eigen::Vector4d (&Cw)[kMaxDerivativeOrder + 1]) const noexcept;
 
+  // closest_point's view of the samples from a point (nurbs_curve.cpp)
+  struct Search;
+
   int n_ = 0, p_ = 1;
   // derivatives_in_span's arithmetic, an instance for the degree p (loops unrolled)
   void (*kernel_)(const Eigen::Vector4d* taylor, double x, int p, int order,
@@ -151,13 +160,43 @@ class NurbsCurve final : public Curve {
   std::vector<double> interval_radius_;
 };
 
+namespace detail {
+/// Vectors alpha axis + rest with alpha in [alpha_lo, alpha_hi] and rest in a box: a bound
+/// on vectors of about one direction whose length varies (a box alone would spread a
+/// length's change over every coordinate a slanted axis has).
+struct VectorBound {
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+  double alpha_lo = 0.0, alpha_hi = 0.0;
+  Eigen::AlignedBox3d rest;
+};
+
+/// A block of sample cells [i0, i1) x [j0, j1) (cell (i, j) between samples (i, j) and
+/// (i + 1, j + 1)) in NurbsSurface::closest_point's hierarchy, with bounds on what the
+/// search reads there: the cells' bounding spheres; the samples [i0 - 1, i1 + 1] x
+/// [j0 - 1, j1 + 1] (those in range); the steps between neighbouring samples along u that
+/// end in rows [i0, i1 + 1] of columns [j0, j1], and along v likewise; the first
+/// derivatives S_u (both sides) and S_v (both sides) at the cells' corners.
+struct NurbsCellBlock {
+  Eigen::AlignedBox3d spheres, samples;
+  VectorBound step_u, step_v, su, sv;
+  int i0 = 0, i1 = 0, j0 = 0, j1 = 0;
+  int first_child = -1, children = 0;  ///< the children follow one another
+};
+}  // namespace detail
+
 /// A tensor-product NURBS surface of degrees (p, q) with nu x nv control points.
+///
+/// closest_point searches a hierarchy of the samples' cells built by the constructor
+/// (linear in the number of samples), so that its cost grows with the part of the surface
+/// near the point rather than with the whole surface.
 class NurbsSurface final : public Surface {
  public:
   /// control_points (nu * nv, 3), row i * nv + j the point P_ij [m]; weights (nu, nv) > 0
   /// (its shape gives nu, nv); knots_u: nu + degree_u + 1 values, knots_v: nv + degree_v +
-  /// 1 (non-decreasing, multiplicity at most degree + 1); 1 <= degree <= kMaxNurbsDegree.
-  /// Throws std::invalid_argument naming the parameter.
+  /// 1 (non-decreasing, multiplicity at most degree + 1); 1 <= degree <= kMaxNurbsDegree;
+  /// at most kMaxNurbsSurfaceSamples closest-point samples (about 260 x 260 control points
+  /// of degree 3, fewer of a higher degree). Throws std::invalid_argument naming the
+  /// parameter.
   NurbsSurface(const Eigen::MatrixX3d& control_points, const Eigen::MatrixXd& weights,
                const Eigen::VectorXd& knots_u, const Eigen::VectorXd& knots_v, int degree_u,
                int degree_v);
@@ -188,6 +227,22 @@ class NurbsSurface final : public Surface {
                               Eigen::Vector4d (&Sw)[kMaxDerivativeOrder + 1]
                                                    [kMaxDerivativeOrder + 1]) const noexcept;
 
+  // the constructor's stages: each non-empty span pair's Taylor coefficients, the samples
+  // with their first derivatives, the cells' bounding spheres (after the samples), their
+  // hierarchy (after the spheres)
+  void build_taylor();
+  void build_samples();
+  void build_cell_bounds();
+  void build_blocks();
+  void build_block(int index, int i0, int i1, int j0, int j1, int depth);
+  void fill_block(detail::NurbsCellBlock& b) const;
+  // the number of samples along knots (nurbs_basis' sample_parameters' count)
+  static long sample_count(const Eigen::VectorXd& knots, int n, int p) noexcept;
+  // closest_point's view of the samples, cells and blocks from a point
+  // (nurbs_surface_search.hpp)
+  struct Search;
+
+
   int nu_ = 0, nv_ = 0, p_ = 1, q_ = 1;
   // derivatives_in_spans' arithmetic, an instance for the degrees (p, q) (loops unrolled)
   void (*kernel_)(const Eigen::Vector4d* taylor, double x, double y, int p, int q, int order,
@@ -209,6 +264,8 @@ class NurbsSurface final : public Surface {
   // (closest_point skips a start whose cells are all farther than a minimum it has found)
   std::vector<Eigen::Vector3d> cell_center_;
   std::vector<double> cell_radius_;
+  std::vector<detail::NurbsCellBlock> blocks_;  // the hierarchy, its root first
+  int block_depth_ = 0;  // the hierarchy's depth (the root's children: 1)
   bool kinked_ = false;  // an interior knot across which the surface is not C^2
   bool creased_ = false;  // ... nor C^1
 };

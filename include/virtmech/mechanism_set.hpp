@@ -98,6 +98,17 @@ class MechanismSet {
   const MechanismSetOutput& last() const noexcept { return last_; }
 
  private:
+  // step()'s stages: every member placed, its distance recorded (returns the input's
+  // faults); the member to render chosen; the chosen one rendered and the others
+  // unrendered; the output of a faulted cycle; the blend toward the rendered member's force
+  // while switching
+  std::uint32_t place_members(const double* q, const double* dq, MechanismSetOutput& out,
+                              double t_s) noexcept;
+  void choose_member(std::uint32_t faults, MechanismSetOutput& out) noexcept;
+  void render_members(MechanismSetOutput& out) noexcept;
+  std::uint32_t faulted(std::uint32_t faults, MechanismSetOutput& out) noexcept;
+  void blend(MechanismSetOutput& out) noexcept;
+
   std::shared_ptr<const Device> device_;
   int capacity_;
   MechanismSetSettings settings_;

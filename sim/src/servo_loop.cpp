@@ -31,6 +31,40 @@ std::mutex timer_mutex;
 int timer_depth = 0;
 mjfTime timer_saved = nullptr;
 
+// The model's joints and bodies, and the loop's settings, checked against a device of `dof`
+// joints.
+void check_model_and_settings(const mjModel* model, const LoopSettings& settings, int dof) {
+  const std::string n = std::to_string(dof);
+  require(model->nq == dof && model->nv == dof,
+          "model: expected one MuJoCo hinge or slide joint per device joint (nq = nv = " + n +
+              "), got nq = " + std::to_string(model->nq) + ", nv = " + std::to_string(model->nv));
+  require(model->nu == int(settings.actuated.size()),
+          "actuated: expected one device joint per MuJoCo actuator (" + std::to_string(model->nu) +
+              "), got " + std::to_string(settings.actuated.size()));
+  for (int a : settings.actuated) {
+    require(a >= 0 && a < dof, "actuated: index " + std::to_string(a) + " is not a joint of the " +
+                                  n + "-joint device");
+  }
+  require(settings.coupling_inv.rows() == dof && settings.coupling_inv.cols() == dof,
+          "coupling_inv: expected shape (" + n + ", " + n + ")");
+  require(settings.coupling_offset.size() == dof, "coupling_offset: expected shape (" + n + ",)");
+  require(settings.substeps >= 1, "substeps: expected >= 1, got " + std::to_string(settings.substeps));
+  require(settings.period_s > 0.0 && std::isfinite(settings.period_s),
+          "period_s: expected a positive number, got " + std::to_string(settings.period_s));
+  require(settings.comp_bodies.size() == settings.comp_masses.size(),
+          "comp_masses: expected one mass per body in comp_bodies");
+  for (int b : settings.comp_bodies) {
+    require(b >= 0 && b < model->nbody, "comp_bodies: " + std::to_string(b) + " is not a body");
+  }
+  require(settings.delay_cycles >= 0, "delay_cycles: expected >= 0");
+  require(settings.quantum >= 0.0, "quantum: expected >= 0");
+  require(settings.velocity_alpha > 0.0 && settings.velocity_alpha <= 1.0,
+          "velocity_alpha: expected a number in (0, 1], got " +
+              std::to_string(settings.velocity_alpha));
+  require(settings.hand_body == -1 || (settings.hand_body > 0 && settings.hand_body < model->nbody),
+          "hand_body: " + std::to_string(settings.hand_body) + " is not a body (nor -1: none)");
+}
+
 }  // namespace
 
 TimerOff::TimerOff() {
@@ -87,35 +121,7 @@ ServoLoop::ServoLoop(const Device& device, ExternalController& controller, mjMod
 void ServoLoop::init() {
   require(m_ != nullptr && d_ != nullptr, "model, data: expected an mjModel and an mjData");
   n_ = device().dof();
-  const std::string n = std::to_string(n_);
-  require(m_->nq == n_ && m_->nv == n_,
-          "model: expected one MuJoCo hinge or slide joint per device joint (nq = nv = " + n +
-              "), got nq = " + std::to_string(m_->nq) + ", nv = " + std::to_string(m_->nv));
-  require(m_->nu == int(s_.actuated.size()),
-          "actuated: expected one device joint per MuJoCo actuator (" + std::to_string(m_->nu) +
-              "), got " + std::to_string(s_.actuated.size()));
-  for (int a : s_.actuated) {
-    require(a >= 0 && a < n_, "actuated: index " + std::to_string(a) + " is not a joint of the " +
-                                  n + "-joint device");
-  }
-  require(s_.coupling_inv.rows() == n_ && s_.coupling_inv.cols() == n_,
-          "coupling_inv: expected shape (" + n + ", " + n + ")");
-  require(s_.coupling_offset.size() == n_, "coupling_offset: expected shape (" + n + ",)");
-  require(s_.substeps >= 1, "substeps: expected >= 1, got " + std::to_string(s_.substeps));
-  require(s_.period_s > 0.0 && std::isfinite(s_.period_s),
-          "period_s: expected a positive number, got " + std::to_string(s_.period_s));
-  require(s_.comp_bodies.size() == s_.comp_masses.size(),
-          "comp_masses: expected one mass per body in comp_bodies");
-  for (int b : s_.comp_bodies) {
-    require(b >= 0 && b < m_->nbody, "comp_bodies: " + std::to_string(b) + " is not a body");
-  }
-  require(s_.delay_cycles >= 0, "delay_cycles: expected >= 0");
-  require(s_.quantum >= 0.0, "quantum: expected >= 0");
-  require(s_.velocity_alpha > 0.0 && s_.velocity_alpha <= 1.0,
-          "velocity_alpha: expected a number in (0, 1], got " +
-              std::to_string(s_.velocity_alpha));
-  require(s_.hand_body == -1 || (s_.hand_body > 0 && s_.hand_body < m_->nbody),
-          "hand_body: " + std::to_string(s_.hand_body) + " is not a body (nor -1: none)");
+  check_model_and_settings(m_, s_, n_);
   if (s_.hand_body > 0) {
     hand_mass_ = m_->body_mass[s_.hand_body];
     std::copy(m_->body_inertia + 3 * s_.hand_body, m_->body_inertia + 3 * s_.hand_body + 3,

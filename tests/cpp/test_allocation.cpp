@@ -6,6 +6,7 @@
 // test files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -13,7 +14,9 @@
 #include <string>
 #include <thread>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
+#include <limits>
 #include <new>
 #include <type_traits>
 #include <utility>
@@ -336,6 +339,47 @@ TEST(Allocation, MechanismSetOfFourAllocatesAndFreesNothing) {
   EXPECT_EQ(n.news, 0);
   EXPECT_EQ(out.cycle.status & status::kFaultMask, 0u);
   EXPECT_TRUE(out.cycle.torque.allFinite());
+}
+
+TEST(Allocation, RecoveryOnALargeNurbsSurfaceAllocatesNothing) {
+  // a probe on a 60 x 60 bicubic patch (the test patch's bump and saddle over 12 cm x 9 cm,
+  // 2.3e5 closest-point samples in a deep hierarchy) under the Omni's tip, with a fault
+  // every 50 cycles: each recovery places the probe by the surface's global closest point
+  const int n = 60;
+  Eigen::MatrixX3d P(n * n, 3);
+  Eigen::MatrixXd W(n, n);
+  Eigen::Matrix3d R;
+  R << 1, 0, 0, 0, 0, 1, 0, -1, 0;  // the patch's normal along the Omni's +y
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const double x = 0.12 * i / (n - 1) - 0.06, y = 0.09 * j / (n - 1) - 0.045;
+      const Eigen::Vector3d local(
+          x, y, 0.012 * std::cos(2.0 * x / 0.06) * std::cos(y / 0.045) + 0.2 * x * y);
+      P.row(i * n + j) = (Eigen::Vector3d(0, 0, -0.12) + R * local).transpose();
+      W(i, j) = 1.0 + 0.1 * ((i + j) % 3);
+    }
+  }
+  Eigen::VectorXd k(n + 4);
+  for (int i = 0; i < n + 4; ++i) k[i] = std::clamp((i - 3.0) / (n - 3), 0.0, 1.0);
+  auto surface = std::make_shared<NurbsSurface>(P, W, k, k, 3, 3);
+  Controller c(std::make_shared<PhantomOmni>(), std::make_shared<SurfaceProbe>(surface, 0.1),
+               cycle_settings());
+  JointVector q(6), dq(6);
+  CycleOutput out;
+  int faults = 0;  // the non-finite inputs (the path also leaves the joint range at times)
+  start_heap_count();
+  for (int cycle = 0; cycle < 5000; ++cycle) {
+    joint_state(cycle, q, dq);
+    if (cycle % 50 == 25) q[0] = std::numeric_limits<double>::quiet_NaN();
+    const std::uint32_t st = c.step(q.data(), dq.data(), out, cycle * 1e-3);
+    faults += (st & status::kFaultNonFiniteInput) != 0u;
+  }
+  const HeapCount count = stop_heap_count();
+  EXPECT_EQ(count.allocations, 0);
+  EXPECT_EQ(count.frees, 0);
+  EXPECT_EQ(count.news, 0);
+  EXPECT_EQ(faults, 100);
+  EXPECT_TRUE(out.torque.allFinite());
 }
 
 TEST(Allocation, CApiStepAndDiagnosticsAllocateNothing) {

@@ -1,4 +1,4 @@
-// The cycle's sine, cosine and atan2 (src/trig.hpp) against long double and the library's.
+// The cycle's own sine, cosine and atan2 (src/trig.hpp) against long double and the library's.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -29,7 +29,7 @@ TEST(Arctangent, IsWithinTwoUlpsOfTheExactValueInEveryQuadrantAndScale) {
     const double y = unit(rng) * s;
     const double x = unit(rng) * (i % 4 == 0 ? std::pow(10.0, decades(rng)) : s);
     const long double exact = std::atan2(static_cast<long double>(y), static_cast<long double>(x));
-    const double got = virtmech::detail::atan2(y, x);
+    const double got = virtmech::detail::atan2_by_fit(y, x);
     if (exact == 0.0L) {
       ASSERT_EQ(got, 0.0) << y << " " << x;
       continue;
@@ -51,7 +51,7 @@ TEST(Arctangent, IsExactAtTheReductionsSeams) {
           const double y = sy * (swap > 0.0 ? 1.0 : r), x = sx * (swap > 0.0 ? r : 1.0);
           const long double exact =
               std::atan2(static_cast<long double>(y), static_cast<long double>(x));
-          EXPECT_LE(ulps(virtmech::detail::atan2(y, x), exact), 2.0) << y << " " << x;
+          EXPECT_LE(ulps(virtmech::detail::atan2_by_fit(y, x), exact), 2.0) << y << " " << x;
         }
       }
     }
@@ -66,18 +66,18 @@ TEST(Arctangent, SpecialValuesAreTheLibrarys) {
   const double v[] = {0.0, -0.0, 1.0, -1.0, inf, -inf, tiny, -tiny, big, -big, 1e-301, 2e300};
   for (const double y : v) {
     for (const double x : v) {
-      const double a = virtmech::detail::atan2(y, x), b = std::atan2(y, x);
+      const double a = virtmech::detail::atan2_by_fit(y, x), b = std::atan2(y, x);
       EXPECT_EQ(std::signbit(a), std::signbit(b)) << y << " " << x;
       EXPECT_LE(std::abs(a - b), 4.5e-16 * std::abs(b)) << y << " " << x;
     }
-    EXPECT_TRUE(std::isnan(virtmech::detail::atan2(y, nan)));
-    EXPECT_TRUE(std::isnan(virtmech::detail::atan2(nan, y)));
+    EXPECT_TRUE(std::isnan(virtmech::detail::atan2_by_fit(y, nan)));
+    EXPECT_TRUE(std::isnan(virtmech::detail::atan2_by_fit(nan, y)));
   }
   // the signs of zero: +-0 toward +x, +-pi toward -x
-  EXPECT_TRUE(std::signbit(virtmech::detail::atan2(-0.0, 1.0)));
-  EXPECT_FALSE(std::signbit(virtmech::detail::atan2(0.0, 1.0)));
-  EXPECT_EQ(virtmech::detail::atan2(-0.0, -1.0), -M_PI);
-  EXPECT_EQ(virtmech::detail::atan2(0.0, -1.0), M_PI);
+  EXPECT_TRUE(std::signbit(virtmech::detail::atan2_by_fit(-0.0, 1.0)));
+  EXPECT_FALSE(std::signbit(virtmech::detail::atan2_by_fit(0.0, 1.0)));
+  EXPECT_EQ(virtmech::detail::atan2_by_fit(-0.0, -1.0), -M_PI);
+  EXPECT_EQ(virtmech::detail::atan2_by_fit(0.0, -1.0), M_PI);
 }
 
 namespace {
@@ -85,7 +85,7 @@ namespace {
 // the larger error of sin x and cos x in ulps (an exact zero must be given exactly)
 double sincos_ulps(double x) {
   double s, c;
-  virtmech::detail::sincos(x, s, c);
+  virtmech::detail::sincos_by_fit(x, s, c);
   const long double xl = x;
   const long double es = std::sin(xl), ec = std::cos(xl);
   const double us = es == 0.0L ? (s == 0.0 ? 0.0 : 1e9) : ulps(s, es);
@@ -138,7 +138,7 @@ TEST(SineCosine, SpecialValuesAreTheLibrarys) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (const double x : {0.0, -0.0, inf, -inf, nan, 1e300, -1e300, 1e3, -1e3, 1e3 + 1e-9}) {
     double s, c;
-    virtmech::detail::sincos(x, s, c);
+    virtmech::detail::sincos_by_fit(x, s, c);
     const double es = std::sin(x), ec = std::cos(x);
     EXPECT_EQ(std::isnan(s), std::isnan(es)) << x;
     EXPECT_EQ(std::isnan(c), std::isnan(ec)) << x;
@@ -147,5 +147,28 @@ TEST(SineCosine, SpecialValuesAreTheLibrarys) {
       EXPECT_LE(std::abs(s - es), 4.5e-16) << x;
       EXPECT_LE(std::abs(c - ec), 4.5e-16) << x;
     }
+  }
+}
+
+TEST(CycleTrigonometry, IsTheOwnOrInACoreOnCmathTheLibrarys) {
+  // the cycle's sincos and atan2 forward to one implementation, bit for bit
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<double> wide(-20.0, 20.0);
+  for (int i = 0; i < 10000; ++i) {
+    const double x = wide(rng), y = wide(rng);
+    double s, c, s_expected, c_expected;
+    virtmech::detail::sincos(x, s, c);
+    if (virtmech::detail::kStdMath) {
+      s_expected = std::sin(x);
+      c_expected = std::cos(x);
+    } else {
+      virtmech::detail::sincos_by_fit(x, s_expected, c_expected);
+    }
+    ASSERT_EQ(s, s_expected) << x;
+    ASSERT_EQ(c, c_expected) << x;
+    ASSERT_EQ(virtmech::detail::atan2(y, x), virtmech::detail::kStdMath
+                                                 ? std::atan2(y, x)
+                                                 : virtmech::detail::atan2_by_fit(y, x))
+        << y << " " << x;
   }
 }

@@ -160,8 +160,8 @@ def test_the_page_draws_the_device_and_the_mouse_moves_the_hand():
             browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
             s0 = wait_state(port, lambda s: s["t"] > 0.5, what="the simulation to run")
             page = browser.new_page(viewport={"width": 900, "height": 560})
-            page.goto(f"http://127.0.0.1:{port}/", timeout=20000)
-            page.wait_for_selector("canvas", timeout=20000)
+            page.goto(f"http://127.0.0.1:{port}/", timeout=60000)
+            page.wait_for_selector("canvas", timeout=60000)
             page.add_style_tag(content=HIDE_NOTIFICATIONS)
             wait_state(port, lambda s: s["clients"] >= 1, what="the page to connect")
             canvas = page.locator("canvas").first
