@@ -38,11 +38,14 @@ CartesianModel model(const char* name, bool orientation, bool torque, bool gripp
   return m;
 }
 
-// Figures (docs/devices.md, "Cartesian devices"): force and torque limits from CHAI3D's
-// device table (omega.x 12 N, Falcon 8 N, sigma.7 0.2 N·m); the sigma.7's force, the
-// workspaces (a box holding the datasheets' cylinders: omega.x 160 mm across, 110 mm deep;
-// sigma.7 190 x 130 mm; Falcon a 100 mm cube) and the wrist ranges (omega.6 and omega.7 240 x
-// 140 x 320 deg, sigma.7 235 x 140 x 200 deg) from the vendors' datasheets (check).
+// Figures (docs/devices.md, "Cartesian devices", which cites their sources): the omega.6's
+// 12 N, the Falcon's 8 N and the sigma.7's 0.2 N·m, and which axes are sensed and driven,
+// from CHAI3D's device table for the DHD devices. Every other figure here is a simulation
+// parameter, not a datasheet figure: the omega.3's and omega.7's 12 N and the sigma.7's force
+// clamp (the omega.6's figure, so that the sigma.7 differs from the omega.6 by its driven
+// wrist only), the workspace boxes and the wrist ranges (generous bounds of the
+// plausibility check; the pitch b within 70 deg keeps away from the gimbal lock at 90 deg),
+// and the default gains.
 std::vector<CartesianModel> make_models() {
   const Eigen::Vector3d omega_box(0.055, 0.08, 0.08), sigma_box(0.065, 0.095, 0.095),
       falcon_box(0.05, 0.05, 0.05);
@@ -51,7 +54,7 @@ std::vector<CartesianModel> make_models() {
       model("omega.3", false, false, false, 12.0, 0.0, omega_box, none),
       model("omega.6", true, false, false, 12.0, 0.0, omega_box, half(240, 140, 320)),
       model("omega.7", true, false, true, 12.0, 0.0, omega_box, half(240, 140, 320)),
-      model("sigma.7", true, true, true, 20.0, 0.2, sigma_box, half(235, 140, 200)),
+      model("sigma.7", true, true, true, 12.0, 0.2, sigma_box, half(235, 140, 200)),
       model("falcon", false, false, false, 8.0, 0.0, falcon_box, none),
   };
 }

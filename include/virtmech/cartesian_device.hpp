@@ -23,7 +23,8 @@ namespace virtmech {
 
 /// What one Cartesian device model senses and drives, and its limits. The position range is
 /// a box around the SDK's origin that holds the model's workspace; the angle ranges are its
-/// wrist's. Sources and the figures still to check: docs/devices.md, "Cartesian devices".
+/// wrist's. Which figures come from a source and which are simulation parameters:
+/// docs/devices.md, "Cartesian devices".
 struct CartesianModel {
   std::string name;             //!< "omega.3", "omega.6", "omega.7", "sigma.7" or "falcon"
   bool orientation_sensed;      //!< the wrist's rotation is read (6 coordinates; else 3)

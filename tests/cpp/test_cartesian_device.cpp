@@ -173,7 +173,7 @@ TEST(CartesianDevice, ActuationAndLimitsByModel) {
     double force, torque_limit;
   };
   for (const Expect& e : {Expect{"omega.3", 3, false, 12.0, 0.0}, Expect{"omega.6", 6, false, 12.0, 0.0},
-                          Expect{"omega.7", 6, false, 12.0, 0.0}, Expect{"sigma.7", 6, true, 20.0, 0.2},
+                          Expect{"omega.7", 6, false, 12.0, 0.0}, Expect{"sigma.7", 6, true, 12.0, 0.2},
                           Expect{"falcon", 3, false, 8.0, 0.0}}) {
     const CartesianDevice d(e.name);
     SCOPED_TRACE(e.name);

@@ -73,7 +73,7 @@ class DeviceModel:
             # three slides and a wrist: link_mass is each slide's carriage [kg], armature the
             # mass its motor and transmission reflect there [kg], joint_friction [N] and
             # joint_damping [N·s/m] on the slides; a handle of about 0.2 kg apparent mass and
-            # 0.1 N of friction (check)
+            # 0.1 N of friction: simulation parameters, not measured or datasheet figures
             return DeviceModel(
                 link_mass=0.02,
                 base_mass=0.0,
