@@ -140,15 +140,18 @@ def velocity_estimate(q: np.ndarray, period_s: float, cutoff_hz: float) -> np.nd
     return dq
 
 
-#: the stand-in's truth rows in mode mujoco (standin_hd.cpp: LogLayout of n = 6 joints)
-TRUTH_COLUMNS = (
-    ["t"]
-    + [f"q{i}" for i in range(6)]
-    + [f"dq{i}" for i in range(6)]
-    + ["px", "py", "pz", "sx", "sy", "sz", "vx", "vy", "vz", "wx", "wy", "wz"]
-    + [f"tau_motor{i}" for i in range(6)]
-    + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz", "ax", "ay", "az", "segment"]
-)
+def truth_columns(n: int = 6) -> list[str]:
+    """The stand-in's truth rows in mode mujoco for a device of n joints (standin_sim.hpp,
+    truth_layout)."""
+    return (
+        ["t"]
+        + [f"q{i}" for i in range(n)]
+        + [f"dq{i}" for i in range(n)]
+        + ["px", "py", "pz", "sx", "sy", "sz", "vx", "vy", "vz", "wx", "wy", "wz"]
+        + [f"tau_motor{i}" for i in range(n)]
+        + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz", "ax", "ay", "az", "segment"]
+    )
+
 
 
 def mujoco_config(folder: Path, scenario, reference) -> dict:
@@ -182,11 +185,14 @@ def mujoco_config(folder: Path, scenario, reference) -> dict:
     order = "columns anchor_p anchor_R anchor_v anchor_w k_t b_t k_r b_r force moment"
     order = (order + " force_in_handle hand_attached segment").split()
     p = scenario.data["device"]
+    if p["type"] == "CartesianDevice":  # the DHD stand-in's device
+        kind = {"device_model": p["model"], "handle_rotation": np.asarray(device.handle_rotation)}
+    else:
+        kind = {"l1": p["l1"], "l2": p["l2"]}
     return {
         "mode": "mujoco",
         "model": folder / "model.mjb",
-        "l1": p["l1"],
-        "l2": p["l2"],
+        **kind,
         "coupling_inv": np.asarray(cp.Cinv, dtype=float),
         "coupling_offset": np.asarray(cp.c0, dtype=float),
         "actuated": [int(i) for i in np.flatnonzero(device.actuated)],
@@ -208,7 +214,8 @@ def mujoco_config(folder: Path, scenario, reference) -> dict:
     }
 
 
-def truth(folder: Path) -> np.ndarray:
-    """The stand-in's simulated device, one row per control cycle (TRUTH_COLUMNS)."""
+def truth(folder: Path, n: int = 6) -> np.ndarray:
+    """The stand-in's simulated device of n joints, one row per control cycle
+    (truth_columns(n))."""
     data = np.fromfile(folder / "truth.bin", dtype=np.float64)
-    return data.reshape(-1, len(TRUTH_COLUMNS))
+    return data.reshape(-1, len(truth_columns(n)))

@@ -70,4 +70,19 @@ class Config {
   std::map<std::string, std::vector<std::string>> values_;
 };
 
+/// `count` float64 values of the file at `path` (fewer where it is shorter; none, with a
+/// message naming `who`, where it cannot be read).
+inline std::vector<double> read_doubles(const std::string& path, size_t count, const char* who) {
+  std::vector<double> out(count, 0.0);
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) {
+    std::fprintf(stderr, "%s: cannot read %s\n", who, path.c_str());
+    return {};
+  }
+  const size_t got = std::fread(out.data(), sizeof(double), count, f);
+  std::fclose(f);
+  out.resize(got);
+  return out;
+}
+
 }  // namespace standin_config

@@ -5,9 +5,16 @@
 //
 //   mode hold     the handle held still at `position` and `rotation` (a b c), or moving along
 //                 a straight line at `velocity` from there (the ticks count the time)
+//   mode mujoco   the simulated device (standin_sim.hpp: the simulation's own loop on the
+//                 MuJoCo model `virtmech run` builds, with a scripted hand): a
+//                 CartesianDevice of `device_model` whose encoders' reading is served as the
+//                 SDK's pose, its true rates as the SDK's velocities, and the force and
+//                 torque set, as coordinate torques (J^T [f; m] at the pose served), driving
+//                 its motors for one control cycle
 //
 // DHD has no scheduler: the application's own thread reads the pose and sets the force once
-// per tick; a tick here is one dhdGetPositionAndOrientationFrame call. The stand-in can refuse
+// per tick; a tick here is one dhdGetPositionAndOrientationFrame call. In mode mujoco one
+// control cycle runs per force set, so the simulated device holds still until the first. The stand-in can refuse
 // dhdOpen, report any system type (dhdGetSystemType), and fail a call of one tick; it checks
 // how it is used: force set only while forces are enabled, no call after dhdClose, dhdStop
 // before dhdClose, no force but zero after a failed call. What it saw is written at dhdClose:
@@ -21,6 +28,9 @@
 //   system_type N (default 34, an omega.6)    open_error TEXT (dhdOpen fails with it)
 //   position X Y Z [m]    rotation A B C [rad]    velocity VX VY VZ [m/s]
 //   error_at TICK pose|velocity|force        the call of that tick fails
+//   mode hold|mujoco    mujoco: device_model NAME (default omega.6)  handle_rotation 3
+//                       (a rotation vector [rad]), and the simulated device's keys
+//                       (standin_sim.hpp)
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -32,6 +42,14 @@
 
 #include "standin_config.hpp"
 #include "virtmech/drivers/dhd_api.h"
+
+#if VM_STANDIN_MUJOCO
+#include <memory>
+
+#include "standin_sim.hpp"
+#include "virtmech/cartesian_device.hpp"
+#include "virtmech/se3.hpp"
+#endif
 
 #define VM_STANDIN_EXPORT extern "C" __attribute__((visibility("default")))
 
@@ -70,6 +88,35 @@ class Standin {
   bool usable(char id);
   bool failing(Failure f);
   void write_trace();
+  // the pose served this tick: position p, gimbal angles abc (zero where not sensed), R
+  void served_pose(double* p, double* abc, double R[3][3]);
+  void served_velocity(double* v, double* w);
+#if VM_STANDIN_MUJOCO
+  bool load_mujoco();
+  void simulate(const double* f, const double* m);
+
+  // the simulated device's controller: the coordinate torques of the wrench last set
+  class Serve final : public virtmech::sim::ExternalController {
+   public:
+    explicit Serve(Standin& s) : s_(s) {}
+    void control(double, const double* qm, const double*, double* torque) override {
+      const int n = s_.device_->dof();
+      for (int i = 0; i < n; ++i) {
+        if (qm[i] != s_.q_[i]) ++s_.reading_mismatches_;
+        torque[i] = s_.tau_[i];
+      }
+    }
+
+   private:
+    Standin& s_;
+  };
+  std::unique_ptr<virtmech::CartesianDevice> device_;
+  std::unique_ptr<Serve> serve_;
+  standin_sim::SimulatedDevice sim_;
+  double q_[6] = {0, 0, 0, 0, 0, 0};    // the coordinates served this tick
+  double tau_[6] = {0, 0, 0, 0, 0, 0};  // the coordinate torques of the wrench set
+  long reading_mismatches_ = 0;         // cycles whose sensing was not the reading served
+#endif
 
   Config config_;
   bool open_ = false;
@@ -136,7 +183,97 @@ int Standin::open() {
   max_ticks_ = static_cast<long>(config_.number("max_ticks", 120000));
   trace_.assign(static_cast<size_t>(max_ticks_) * kTraceWidth,
                 std::numeric_limits<double>::quiet_NaN());
+  if (config_.text("mode", "hold") == "mujoco") {
+#if VM_STANDIN_MUJOCO
+    if (!load_mujoco()) {
+      error_ = "the simulated device cannot be loaded (stand-in)";
+      open_ = false;
+      return -1;
+    }
+#else
+    error_ = "mode mujoco: the stand-in was built without MuJoCo";
+    open_ = false;
+    return -1;
+#endif
+  }
   return 0;  // the device's ID
+}
+
+#if VM_STANDIN_MUJOCO
+bool Standin::load_mujoco() {
+  Eigen::Vector3d handle(M_PI, 0.0, 0.0);
+  for (int i = 0; i < 3; ++i) {
+    handle[i] = config_.number("handle_rotation", handle[i], static_cast<size_t>(i));
+  }
+  try {
+    device_ = std::make_unique<virtmech::CartesianDevice>(config_.text("device_model", "omega.6"),
+                                                          virtmech::so3_exp(handle));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "standin libdhd: %s\n", e.what());
+    return false;
+  }
+  serve_ = std::make_unique<Serve>(*this);
+  reading_mismatches_ = 0;
+  std::fill(tau_, tau_ + 6, 0.0);
+  return sim_.load(config_, *device_, *serve_, max_ticks_, "standin libdhd");
+}
+
+// one control cycle under the wrench (f, m) set at the pose served
+void Standin::simulate(const double* f, const double* m) {
+  virtmech::Pose T;
+  virtmech::Jacobian J;
+  device_->forward_jacobian(q_, T, J);
+  Eigen::Matrix<double, 6, 1> w;
+  w << f[0], f[1], f[2], m[0], m[1], m[2];
+  const Eigen::VectorXd tau = J.transpose() * w;
+  for (int i = 0; i < device_->dof(); ++i) tau_[i] = tau[i];
+  sim_.cycle();
+}
+#endif
+
+void Standin::served_pose(double* p, double* abc, double R[3][3]) {
+#if VM_STANDIN_MUJOCO
+  if (sim_.loaded()) {
+    sim_.sensed(q_);
+    Eigen::Vector3d pos;
+    Eigen::Matrix3d rot;
+    device_->sdk_pose(q_, pos, rot);
+    const bool wrist = device_->orientation_sensed();
+    for (int i = 0; i < 3; ++i) {
+      p[i] = pos[i];
+      abc[i] = wrist ? q_[3 + i] : 0.0;
+      for (int j = 0; j < 3; ++j) R[i][j] = rot(i, j);
+    }
+    return;
+  }
+#endif
+  const double t = static_cast<double>(ticks_ - 1) * period_s_;
+  for (int i = 0; i < 3; ++i) {
+    p[i] = position_[i] + velocity_[i] * t;
+    abc[i] = angles_[i];
+  }
+  gimbal(angles_, R);
+}
+
+void Standin::served_velocity(double* v, double* w) {
+  for (int i = 0; i < 3; ++i) {
+    v[i] = velocity_[i];
+    w[i] = 0.0;
+  }
+#if VM_STANDIN_MUJOCO
+  if (sim_.loaded()) {
+    double dq[6] = {0, 0, 0, 0, 0, 0};
+    sim_.rates(dq);
+    virtmech::Pose T;
+    virtmech::Jacobian J;
+    device_->forward_jacobian(q_, T, J);
+    const Eigen::VectorXd twist = J * Eigen::Map<const Eigen::VectorXd>(dq, device_->dof());
+    for (int i = 0; i < 3; ++i) {
+      v[i] = twist[i];
+      w[i] = twist[3 + i];
+    }
+  }
+#endif
 }
 
 bool Standin::usable(char id) {
@@ -167,6 +304,9 @@ int Standin::close(char id) {
   ++closes_;
   write_trace();
   open_ = false;
+#if VM_STANDIN_MUJOCO
+  sim_.unload();
+#endif
   return 0;
 }
 
@@ -187,19 +327,17 @@ int Standin::pose(double* px, double* py, double* pz, double R[3][3], char id) {
   last_ = now;
   const long row = ticks_++;
   if (failing(kPose)) return -1;
-  const double t = static_cast<double>(row) * period_s_;
-  double p[3];
-  for (int i = 0; i < 3; ++i) p[i] = position_[i] + velocity_[i] * t;
+  double p[3], abc[3];
+  served_pose(p, abc, R);
   *px = p[0];
   *py = p[1];
   *pz = p[2];
-  gimbal(angles_, R);
   if (row < max_ticks_) {
     double* r = &trace_[static_cast<size_t>(row * kTraceWidth)];
     r[0] = static_cast<double>(row);
     for (int i = 0; i < 3; ++i) {
       r[1 + i] = p[i];
-      r[4 + i] = angles_[i];
+      r[4 + i] = abc[i];
     }
     r[14] = 0.0;
     r[15] = 0.0;
@@ -211,15 +349,21 @@ int Standin::pose(double* px, double* py, double* pz, double R[3][3], char id) {
 int Standin::linear_velocity(double* vx, double* vy, double* vz, char id) {
   if (!usable(id)) return -1;
   if (failing(kVelocity)) return -1;
-  *vx = velocity_[0];
-  *vy = velocity_[1];
-  *vz = velocity_[2];
+  double v[3], w[3];
+  served_velocity(v, w);
+  *vx = v[0];
+  *vy = v[1];
+  *vz = v[2];
   return 0;
 }
 
 int Standin::angular_velocity(double* wx, double* wy, double* wz, char id) {
   if (!usable(id)) return -1;
-  *wx = *wy = *wz = 0.0;
+  double v[3], w[3];
+  served_velocity(v, w);
+  *wx = w[0];
+  *wy = w[1];
+  *wz = w[2];
   return 0;
 }
 
@@ -238,6 +382,12 @@ int Standin::set_force(double fx, double fy, double fz, double tx, double ty, do
     r[14] = call;
   }
   if (failing(kForce)) return -1;
+#if VM_STANDIN_MUJOCO
+  if (sim_.loaded()) {
+    const double f[3] = {fx, fy, fz}, m[3] = {tx, ty, tz};
+    simulate(f, m);
+  }
+#endif
   return 0;
 }
 
@@ -261,6 +411,12 @@ void Standin::write_trace() {
                opens_, closes_, stops_, stop_before_close_, enables_, disables_, sets_,
                sets_without_force_, nonzero_after_failure_, calls_closed_, bad_id_, ticks_,
                system_type_);
+#if VM_STANDIN_MUJOCO
+  if (sim_.loaded()) {
+    std::fprintf(f, "cycles %ld\nreading_mismatches %ld\n", sim_.cycles(), reading_mismatches_);
+    sim_.write_truth(config_.text("truth_file", ""));
+  }
+#endif
   std::fclose(f);
   std::FILE* t = std::fopen((path + ".ticks").c_str(), "wb");
   if (t == nullptr) return;
