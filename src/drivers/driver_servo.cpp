@@ -136,7 +136,8 @@ void DriverServo::device_error(std::uint32_t code) noexcept {
   }
 }
 
-std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau) noexcept {
+std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau,
+                                const double* dq_device) noexcept {
   const std::uint64_t entered = CycleClock::now();
   // the record's slot, claimed now and fetched while the renderer steps: at a servo rate of
   // 1 kHz it is cold, and filling it cold would cost more than the rest of the tick
@@ -158,6 +159,7 @@ std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau) noexce
 
   const StopReason stop = reason();
   double step_us = 0.0;
+  const double* dq_served = nullptr;  // the device's velocities, where the tick used them
   const CycleOutput* out = ctrl_ ? &out_ : &set_out_.cycle;
   if (stop != StopReason::kNone) {
     // the run has ended: zero torque, the renderer no longer stepped
@@ -171,13 +173,17 @@ std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau) noexce
       flags |= driver_flag::kBadReading;
       filter_.reset();  // the next good reading starts the estimate afresh
     }
-    const JointVector& dq = qv.allFinite() ? filter_.update(q) : zero_;
+    const JointVector& estimate = qv.allFinite() ? filter_.update(q) : zero_;
+    const bool served =
+        dq_device != nullptr && Eigen::Map<const Eigen::VectorXd>(dq_device, n_).allFinite();
+    if (served) dq_served = dq_device;
+    const double* dq_used = served ? dq_device : estimate.data();
     const std::uint64_t c0 = CycleClock::now();
     std::uint32_t status = 0;
     if (ctrl_) {
-      status = ctrl_->step(q, dq.data(), out_, t_s);
+      status = ctrl_->step(q, dq_used, out_, t_s);
     } else {
-      status = set_->step(q, dq.data(), set_out_, t_s);
+      status = set_->step(q, dq_used, set_out_, t_s);
     }
     step_us = CycleClock::microseconds(c0, CycleClock::now());
     if (status & status::kWatchdog) {
@@ -213,7 +219,7 @@ std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau) noexce
     raise_to(worst_gap_, gap);
   }
   if (pending_ != nullptr) {
-    fill(*pending_, q, t_s, gap, flags, step_us, tau, stop == StopReason::kNone);
+    fill(*pending_, q, dq_served ? dq_served : filter_.velocity().data(), t_s, gap, flags, step_us, tau, stop == StopReason::kNone);
     pending_->device_error = static_cast<double>(tick_device_error_);
     pending_->tick_us = CycleClock::microseconds(entered, CycleClock::now());
   } else {
@@ -223,8 +229,8 @@ std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau) noexce
   return flags;
 }
 
-void DriverServo::fill(TickRecord& r, const double* q, double t_s, double gap,
-                       std::uint32_t flags, double step_us, const double* tau,
+void DriverServo::fill(TickRecord& r, const double* q, const double* dq, double t_s,
+                       double gap, std::uint32_t flags, double step_us, const double* tau,
                        bool stepped) const noexcept {
   const CycleOutput& o = ctrl_ ? out_ : set_out_.cycle;
   const Vector6& twist = ctrl_ ? ctrl_->data().v_R : set_->member(0).data().v_R;
@@ -235,7 +241,7 @@ void DriverServo::fill(TickRecord& r, const double* q, double t_s, double gap,
   r.flags = static_cast<double>(flags);
   r.member = ctrl_ ? 0.0 : static_cast<double>(set_out_.active);
   put(r.q, q, n_, kMaxDof);
-  put(r.dq, filter_.velocity().data(), n_, kMaxDof);
+  put(r.dq, dq, n_, kMaxDof);
   put(r.command, tau, n_, kMaxDof);
   put(r.theta, o.theta.data(), o.theta.size(), kMaxDof);
   put(r.theta_star, o.theta_star.data(), o.theta_star.size(), kMaxDof);
