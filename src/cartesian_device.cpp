@@ -5,7 +5,6 @@
 #include <stdexcept>
 
 #include "closed_form.hpp"
-#include "trig.hpp"
 #include "virtmech/validate.hpp"
 
 namespace virtmech {
@@ -164,9 +163,8 @@ void CartesianDevice::forward_jacobian(const double* q, Pose& T, Jacobian& J) co
   J.setZero(6, n);
   J.topLeftCorner<3, 3>().setIdentity();
   if (n == 3) return;
-  double sa, ca, sb, cb;
-  detail::sincos(q[3], sa, ca);
-  detail::sincos(q[4], sb, cb);
+  const double sa = std::sin(q[3]), ca = std::cos(q[3]);
+  const double sb = std::sin(q[4]), cb = std::cos(q[4]);
   J(3, 3) = 1.0;
   J(4, 4) = ca;
   J(5, 4) = sa;
@@ -205,10 +203,9 @@ void CartesianDevice::sdk_pose(const double* q, Eigen::Vector3d& p,
     R_sdk.setIdentity();
     return;
   }
-  double sa, ca, sb, cb, sc, cc;
-  detail::sincos(q[3], sa, ca);
-  detail::sincos(q[4], sb, cb);
-  detail::sincos(q[5], sc, cc);
+  const double sa = std::sin(q[3]), ca = std::cos(q[3]);
+  const double sb = std::sin(q[4]), cb = std::cos(q[4]);
+  const double sc = std::sin(q[5]), cc = std::cos(q[5]);
   // Rx(a) Ry(b) Rz(c)
   R_sdk << cb * cc, -cb * sc, sb,                        //
       sa * sb * cc + ca * sc, -sa * sb * sc + ca * cc, -sa * cb,  //
@@ -223,9 +220,8 @@ bool CartesianDevice::rates(const double* q, const Eigen::Vector3d& v, const Eig
   dq[1] = v.y();
   dq[2] = v.z();
   if (!orientation_sensed()) return true;
-  double sa, ca, sb, cb;
-  detail::sincos(q[3], sa, ca);
-  detail::sincos(q[4], sb, cb);
+  const double sa = std::sin(q[3]), ca = std::cos(q[3]);
+  const double sb = std::sin(q[4]), cb = std::cos(q[4]);
   if (!(std::abs(cb) > 1e-9)) {
     dq[3] = dq[4] = dq[5] = 0.0;
     return false;
@@ -243,9 +239,8 @@ bool CartesianDevice::wrench(const double* q, const double* tau, Eigen::Vector3d
   f << tau[0], tau[1], tau[2];
   m.setZero();
   if (!orientation_sensed()) return true;
-  double sa, ca, sb, cb;
-  detail::sincos(q[3], sa, ca);
-  detail::sincos(q[4], sb, cb);
+  const double sa = std::sin(q[3]), ca = std::cos(q[3]);
+  const double sb = std::sin(q[4]), cb = std::cos(q[4]);
   if (!(std::abs(cb) > 1e-9)) return false;
   const double u = (tau[5] - sb * tau[3]) / cb;  // -sa m_y + ca m_z
   m << tau[3], ca * tau[4] - sa * u, sa * tau[4] + ca * u;
