@@ -371,17 +371,7 @@ def run(
     device that does not match the scenario) and DeviceFault for a device that fails before
     the servo runs; a fault while running ends the run (DriveResult.exit_code 1). SIGINT and
     SIGTERM end the run (exit 0) from the moment the device is opened."""
-    if device not in DEVICES:
-        raise UserError(f"--device {device}: unknown device; expected one of {', '.join(DEVICES)}")
-    if not watchdog_ms > 0:
-        raise UserError(f"--watchdog-ms {watchdog_ms:g}: expected a number of milliseconds > 0")
-    if duration_s is not None and not duration_s > 0:
-        raise UserError(f"--duration {duration_s:g}: expected a number of seconds > 0")
-    if not quiet:
-        _require_rich()
-    if view_port is not None:
-        _require_viewer()
-    d = _driver_module()
+    _check_options(device, watchdog_ms, duration_s, quiet, view_port)
     S = scenario.data
 
     def notify(message: str) -> None:
@@ -396,12 +386,7 @@ def run(
         try:
             info = dict(driver.info)
             period = float(S["controller"]["period_s"])
-            rate = float(info.get("update_rate_hz", math.nan))
-            if math.isfinite(rate) and abs(rate * period - 1.0) > 0.01:
-                raise UserError(
-                    f"{scenario.source}: controller.period_s {period:g}: the device's servo runs "
-                    f"at {rate:g} Hz (HD_UPDATE_RATE); expected period_s = {1.0 / rate:g}"
-                )
+            _check_rate(scenario.source, info, period)
             calibration = _calibrated(driver, notify, stop)
             if calibration is None:
                 message = "stopped (interrupted) before the servo started"
@@ -411,14 +396,7 @@ def run(
             rows = LogRows(rig)
             if view_port is not None:  # before the servo: a port taken is a mistake, not a fault
                 viewer = _viewer(rig, view_port, notify)
-            try:
-                driver.start(rig.renderer, period_s=period, velocity_cutoff_hz=cutoff)
-            except d.DeviceMismatch as e:
-                raise UserError(f"{scenario.source}: {e}") from None
-            except d.DeviceFault as e:
-                raise DeviceFault(str(e)) from None
-            if getattr(driver, "priority_note", ""):
-                notify(f"warning: {driver.priority_note}")
+            _start(driver, rig, period, cutoff, scenario.source, notify)
             sinks = _sinks(out, fmt, rows.columns, figures)
             if viewer is not None:
                 sinks.append(viewer.replay.append)
@@ -437,6 +415,46 @@ def run(
     if out is not None:
         _finish(result, rig, rows, out, fmt, figures, cutoff, watchdog_ms)
     return result
+
+
+def _check_options(device: str, watchdog_ms: float, duration_s: float | None, quiet: bool,
+                   view_port: int | None) -> None:
+    """run()'s options, each refused by name (UserError), and the extras they need."""
+    if device not in DEVICES:
+        raise UserError(f"--device {device}: unknown device; expected one of {', '.join(DEVICES)}")
+    if not watchdog_ms > 0:
+        raise UserError(f"--watchdog-ms {watchdog_ms:g}: expected a number of milliseconds > 0")
+    if duration_s is not None and not duration_s > 0:
+        raise UserError(f"--duration {duration_s:g}: expected a number of seconds > 0")
+    if not quiet:
+        _require_rich()
+    if view_port is not None:
+        _require_viewer()
+
+
+def _check_rate(source: str, info: dict, period: float) -> None:
+    """The scenario's period against the rate the device's servo runs at (where it says)."""
+    rate = float(info.get("update_rate_hz", math.nan))
+    if math.isfinite(rate) and abs(rate * period - 1.0) > 0.01:
+        raise UserError(
+            f"{source}: controller.period_s {period:g}: the device's servo runs "
+            f"at {rate:g} Hz (HD_UPDATE_RATE); expected period_s = {1.0 / rate:g}"
+        )
+
+
+def _start(driver, rig, period: float, cutoff: float, source: str, notify) -> None:
+    """Starts the servo with the rig's renderer: a device that does not match the scenario is
+    a UserError, one that fails a DeviceFault; a servo thread below real-time priority is
+    told."""
+    d = _driver_module()
+    try:
+        driver.start(rig.renderer, period_s=period, velocity_cutoff_hz=cutoff)
+    except d.DeviceMismatch as e:
+        raise UserError(f"{source}: {e}") from None
+    except d.DeviceFault as e:
+        raise DeviceFault(str(e)) from None
+    if getattr(driver, "priority_note", ""):
+        notify(f"warning: {driver.priority_note}")
 
 
 def _driver_for(device: str, library: str | None, device_name: str | None):
