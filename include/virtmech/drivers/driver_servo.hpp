@@ -167,6 +167,15 @@ class DriverServo {
   void stop_for(StopReason reason) noexcept;
   void fill(TickRecord& r, const double* q, const double* dq, double t_s, double gap,
             std::uint32_t flags, double step_us, const double* tau, bool stepped) const noexcept;
+  // the stages of tick(), in order
+  void claim_record() noexcept;
+  std::uint32_t clock_in(double t_s, double& gap) noexcept;
+  std::uint32_t render(const double* q, double t_s, const double* dq_device, double* tau,
+                       std::uint32_t flags, double& step_us, const double*& dq_served) noexcept;
+  std::uint32_t hold_faults(std::uint32_t status, double t_s) noexcept;
+  void record(const double* q, const double* dq_served, double t_s, double gap,
+              std::uint32_t flags, double step_us, const double* tau, bool stepped,
+              std::uint64_t entered) noexcept;
 
   Controller* ctrl_ = nullptr;  // one of the two
   MechanismSet* set_ = nullptr;
