@@ -27,10 +27,9 @@ else
   exit 1
 fi
 
-# the same suites over the core built on <cmath> (its own sine, cosine, atan2, rotation
-# logarithm's series and cycle clock replaced by the library's: docs/performance.md); the
-# allocation-free build above
-# does not depend on it
+# the same suites over the core built on <cmath> (its own atan2, rotation logarithm's series
+# and cycle clock replaced by the library's: docs/performance.md); the allocation-free build
+# above does not depend on it
 echo "== C++: the core on <cmath> (VIRTMECH_STD_MATH=ON): build and GoogleTest"
 cmake -S . -B build/cpp-std-math "${generator[@]}" -DCMAKE_BUILD_TYPE=Release \
   -DVIRTMECH_BUILD_TESTS=ON -DVIRTMECH_STD_MATH=ON \

@@ -4,7 +4,6 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "trig.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/validate.hpp"
 
@@ -300,10 +299,9 @@ void PhantomOmni::forward_jacobian(const double* q, Pose& T, Jacobian& J) const 
 // meet at p).
 void PhantomOmni::kinematics(const double* q, Pose& T, Jacobian* J) const noexcept {
   const PhantomOmniParams& P = params_;
-  double s1, c1, s2, c2, s3, c3;
-  detail::sincos(q[0], s1, c1);
-  detail::sincos(q[1], s2, c2);
-  detail::sincos(q[2], s3, c3);
+  const double s1 = std::sin(q[0]), c1 = std::cos(q[0]);
+  const double s2 = std::sin(q[1]), c2 = std::cos(q[1]);
+  const double s3 = std::sin(q[2]), c3 = std::cos(q[2]);
   // u' = R1 u and w' = R1 w (R1 (0, y, z) = (-s1 z, y, c1 z))
   const double uy = P.l1 * s2, uz = P.l1 * c2, wy = -P.l2 * c3, wz = P.l2 * s3;
   const Eigen::Vector3d u(-s1 * uz, uy, c1 * uz), w(-s1 * wz, wy, c1 * wz);
@@ -316,7 +314,9 @@ void PhantomOmni::kinematics(const double* q, Pose& T, Jacobian* J) const noexce
   // the gimbal: about -y, -x, -z by the serial angles t_i = sign_i (q_i - offset_i)
   double sg[3], cg[3];
   for (size_t i = 0; i < 3; ++i) {
-    detail::sincos(P.gimbal_sign[i] * (q[3 + i] - P.gimbal_offset[i]), sg[i], cg[i]);
+    const double t = P.gimbal_sign[i] * (q[3 + i] - P.gimbal_offset[i]);
+    sg[i] = std::sin(t);
+    cg[i] = std::cos(t);
   }
   {  // R <- R Ry(-t4)
     const Eigen::Vector3d x = R.col(0), z = R.col(2);

@@ -4,7 +4,6 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "trig.hpp"
 #include "virtmech/validate.hpp"
 
 namespace virtmech {
@@ -58,8 +57,7 @@ inline void apply_origin(Frame& f, const Pose& origin, bool identity,
     return;
   }
   // rotation about a coordinate axis k mixes the two other columns of R
-  double c, s;
-  detail::sincos(a, s, c);
+  const double c = std::cos(a), s = std::sin(a);
   const int u = axis_index == 2 ? 0 : axis_index + 1, v = axis_index == 0 ? 2 : axis_index - 1;
   const Eigen::Vector3d ru = f.R.col(u), rv = f.R.col(v);
   f.R.col(u) = c * ru + s * rv;

@@ -7,7 +7,6 @@
 
 #include "closed_form.hpp"
 #include "rotation_log.hpp"
-#include "trig.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/validate.hpp"
 
@@ -324,9 +323,8 @@ void wrist_at_tip(const Eigen::Matrix3d& B, const Eigen::Vector3d& tip, double l
 }
 
 Eigen::Vector3d wrist_direction(const Eigen::Matrix3d& B, const double* abc) noexcept {
-  double sa, ca, sb, cb;
-  detail::sincos(abc[0], sa, ca);
-  detail::sincos(abc[1], sb, cb);
+  const double sa = std::sin(abc[0]), ca = std::cos(abc[0]);
+  const double sb = std::sin(abc[1]), cb = std::cos(abc[1]);
   return B * Eigen::Vector3d(sb, -sa * cb, ca * cb);
 }
 

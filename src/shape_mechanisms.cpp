@@ -5,7 +5,6 @@
 #include <stdexcept>
 
 #include "closed_form.hpp"
-#include "trig.hpp"
 #include "virtmech/mechanism.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/validate.hpp"
@@ -43,8 +42,7 @@ void probe_wrist(const Eigen::Matrix3d& B, const Eigen::Vector3d& tip, const dou
   T.linear() << R_tip.col(0), -R_tip.col(1), -R_tip.col(2);
   T.translation() = tip + arm;
   T.makeAffine();
-  double ca, sa;
-  detail::sincos(abc[0], sa, ca);
+  const double ca = std::cos(abc[0]), sa = std::sin(abc[0]);
   const Eigen::Vector3d axes[3] = {B.col(0), ca * B.col(1) + sa * B.col(2), R_tip.col(2)};
   for (int i = 0; i < 3; ++i) J.col(col + i) << axes[i].cross(arm), axes[i];
 }

@@ -7,7 +7,6 @@
 
 #include "small_cholesky.hpp"
 #include "track_detail.hpp"
-#include "trig.hpp"
 #include "virtmech/se3.hpp"
 
 namespace virtmech {
@@ -30,8 +29,7 @@ bool error_derivative(const Jacobian& J, const Vector6& e, const Vector6& W,
   const double t = phi.norm();
   if (!(t < M_PI - 1e-6)) return false;  // (also NaN: the log is not differentiable there)
   const Eigen::Matrix3d X = skew(phi);
-  double sin_t, cos_t;
-  detail::sincos(t, sin_t, cos_t);
+  const double sin_t = std::sin(t), cos_t = std::cos(t);
   // 1 / t^2 - (1 + cos t) / (2 t sin t), by its series below 1e-4 (next term t^4 / 30240)
   const double k = t < 1e-4 ? 1.0 / 12.0 + t * t / 720.0
                             : 1.0 / (t * t) - (1.0 + cos_t) / (2.0 * t * sin_t);

@@ -1,6 +1,7 @@
 // virtmech: haptic devices, fully or under-actuated, rendered as virtual mechanisms.
 #pragma once
 
+#include "virtmech/cartesian_device.hpp"
 #include "virtmech/controller.hpp"
 #include "virtmech/device.hpp"
 #include "virtmech/device_pose.hpp"

@@ -1,6 +1,7 @@
 // virtmech._driver: the device drivers (include/virtmech/drivers/) for virtmech.drive.
-// Translation only: the OpenHaptics driver's lifecycle, its servo's counters and records
-// (a float64 row of record_width() numbers per tick), the driver errors as exceptions.
+// Translation only: a driver's lifecycle (DeviceDriver, shared by the OpenHaptics and the
+// Force Dimension drivers), its servo's counters and records (a float64 row of record_width()
+// numbers per tick), the driver errors as exceptions.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
@@ -10,6 +11,7 @@
 #include <string>
 
 #include "virtmech/controller.hpp"
+#include "virtmech/drivers/force_dimension.hpp"
 #include "virtmech/drivers/openhaptics.hpp"
 #include "virtmech/mechanism_set.hpp"
 #include "virtmech/velocity_filter.hpp"
@@ -99,7 +101,7 @@ nb::dict stats_dict(const ServoStats& s) {
 }
 
 template <typename Renderer>
-void start(OpenHapticsDriver& d, Renderer& r, double period_s, double velocity_cutoff_hz,
+void start(DeviceDriver& d, Renderer& r, double period_s, double velocity_cutoff_hz,
            double late_s, double fault_limit_s, std::size_t record_capacity) {
   const ServoSettings s =
       servo_settings(period_s, velocity_cutoff_hz, late_s, fault_limit_s, record_capacity);
@@ -155,20 +157,11 @@ NB_MODULE(_driver, m) {
   m.attr("ZERO_MASK") = driver_flag::kZeroMask;
 
   const ServoSettings defaults;
-  nb::class_<OpenHapticsDriver>(m, "OpenHapticsDriver",
-                                "The OpenHaptics HD driver (libHD loaded at run time).")
-      .def(
-          "__init__",
-          [](OpenHapticsDriver* self, const std::string& library, const std::string& device_name) {
-            OpenHapticsSettings s;
-            s.library = library;
-            s.device_name = device_name;
-            new (self) OpenHapticsDriver(s);
-          },
-          "library"_a = "", "device_name"_a = "")
+  nb::class_<DeviceDriver>(m, "DeviceDriver",
+                           "A device driver (its vendor's SDK loaded at run time).")
       .def(
           "open",
-          [](OpenHapticsDriver& d, const Device& model) {
+          [](DeviceDriver& d, const Device& model) {
             nb::gil_scoped_release release;
             d.open(model);
           },
@@ -176,7 +169,7 @@ NB_MODULE(_driver, m) {
           "Opens the device and checks it against the device model.")
       .def(
           "calibrate",
-          [](OpenHapticsDriver& d) {
+          [](DeviceDriver& d) {
             Calibration c;
             {
               nb::gil_scoped_release release;
@@ -197,29 +190,30 @@ NB_MODULE(_driver, m) {
            "Starts the servo over a MechanismSet.")
       .def(
           "stop",
-          [](OpenHapticsDriver& d) {
+          [](DeviceDriver& d) {
             nb::gil_scoped_release release;
             d.stop();
           },
-          "Zero torque, the scheduler stopped, the callback unscheduled, the device disabled.")
+          "Zero torque, the servo stopped, the device closed (HD: the scheduler stopped, the "
+          "callback unscheduled, the device disabled; DHD: the thread joined, dhdStop, dhdClose).")
       .def(
           "request_stop",
-          [](OpenHapticsDriver& d) {
+          [](DeviceDriver& d) {
             if (d.servo()) d.servo()->request_stop();
           },
           "Zero torque from the next tick on (stop() then ends the run).")
-      .def_prop_ro("is_open", &OpenHapticsDriver::is_open)
-      .def_prop_ro("running", &OpenHapticsDriver::running)
-      .def_prop_ro("info", [](const OpenHapticsDriver& d) { return info_dict(d.info()); })
+      .def_prop_ro("is_open", &DeviceDriver::is_open)
+      .def_prop_ro("running", &DeviceDriver::running)
+      .def_prop_ro("info", [](const DeviceDriver& d) { return info_dict(d.info()); })
       .def_prop_ro(
           "stats",
-          [](const OpenHapticsDriver& d) {
+          [](const DeviceDriver& d) {
             return stats_dict(d.servo() ? d.servo()->stats() : ServoStats{});
           },
           "The servo's counters (ticks, late, watchdog, rate_hz, worst_tick_us, ...).")
       .def(
           "read_records",
-          [](OpenHapticsDriver& d, std::size_t max) {
+          [](DeviceDriver& d, std::size_t max) {
             const auto w = static_cast<std::size_t>(kTickRecordWidth);
             auto* buffer = new TickRecord[max > 0 ? max : 1];
             const std::size_t n =
@@ -229,8 +223,39 @@ NB_MODULE(_driver, m) {
                 reinterpret_cast<double*>(buffer), {n, w}, owner);
           },
           "max"_a, "Up to max tick records, oldest first: a (n, record_width()) float64 array.")
-      .def("stalled", &OpenHapticsDriver::stalled, "stall_s"_a,
+      .def("stalled", &DeviceDriver::stalled, "stall_s"_a,
            "True while running when no tick has come for stall_s seconds.")
-      .def("describe_error", &OpenHapticsDriver::describe_error, "code"_a,
-           "An HD error code as the user reads it, e.g. 'HD_COMM_ERROR (0x0302): ...'.");
+      .def("describe_error", &DeviceDriver::describe_error, "code"_a,
+           "A device error code as the user reads it, e.g. 'HD_COMM_ERROR (0x0302): ...'.");
+
+  nb::class_<OpenHapticsDriver, DeviceDriver>(
+      m, "OpenHapticsDriver", "The OpenHaptics HD driver (libHD loaded at run time).")
+      .def(
+          "__init__",
+          [](OpenHapticsDriver* self, const std::string& library, const std::string& device_name) {
+            OpenHapticsSettings s;
+            s.library = library;
+            s.device_name = device_name;
+            new (self) OpenHapticsDriver(s);
+          },
+          "library"_a = "", "device_name"_a = "");
+
+  nb::class_<ForceDimensionDriver, DeviceDriver>(
+      m, "ForceDimensionDriver",
+      "The Force Dimension DHD driver (libdhd loaded at run time; omega, sigma, Falcon).")
+      .def(
+          "__init__",
+          [](ForceDimensionDriver* self, const std::string& library, int realtime_priority) {
+            ForceDimensionSettings s;
+            s.library = library;
+            s.realtime_priority = realtime_priority;
+            new (self) ForceDimensionDriver(s);
+          },
+          "library"_a = "", "realtime_priority"_a = ForceDimensionSettings().realtime_priority)
+      .def_prop_ro("system_type", &ForceDimensionDriver::system_type,
+                   "dhdGetSystemType's value of the open device (-1 before).")
+      .def_prop_ro("realtime", &ForceDimensionDriver::realtime,
+                   "True while the servo thread runs at SCHED_FIFO.")
+      .def_prop_ro("priority_note", &ForceDimensionDriver::priority_note,
+                   "Why the servo thread does not run at SCHED_FIFO ('' where it does).");
 }

@@ -1,6 +1,6 @@
-// Devices (include/virtmech/device.hpp). The Omni's constructor and parameters are its
-// kind's (src/kinds/phantom_omni.cpp); a serial-chain device and the Planar3R take a chain
-// and poses as C++ does.
+// Devices (include/virtmech/device.hpp). The Omni's and the Cartesian devices' constructors
+// and parameters are their kinds' (src/kinds/phantom_omni.cpp, cartesian_device.cpp); a
+// serial-chain device and the Planar3R take a chain and poses as C++ does.
 #include "expose.hpp"
 
 namespace vmpy {
@@ -98,6 +98,62 @@ void expose_devices(nb::module_& m) {
           "link1, link2 [m]; base (4, 4); torque_limit [N·m]; max_force [N].")
       .def_prop_ro("link1", &Planar3R::link1)
       .def_prop_ro("link2", &Planar3R::link2);
+
+  const DeviceKind& cartesian_kind = *registry().device("CartesianDevice");
+  nb::class_<CartesianDevice, SerialDevice> cartesian(m, "CartesianDevice",
+                                                       cartesian_kind.doc.c_str());
+  def_kind<CartesianDevice>(cartesian, cartesian_kind.params, "CartesianDevice", [](Params p) {
+    p.set("type", "CartesianDevice");
+    return make_device(p, "");
+  });
+  cartesian
+      .def_prop_ro("orientation_sensed", &CartesianDevice::orientation_sensed,
+                   "True where the wrist's rotation is read (6 coordinates; else 3).")
+      .def_prop_ro("torque_actuated", &CartesianDevice::torque_actuated,
+                   "True where the wrist is driven (the device renders a torque).")
+      .def_prop_ro("gripper", [](const CartesianDevice& d) { return d.model().gripper; },
+                   "True where the device has an actuated gripper.")
+      .def("coordinates", [](const CartesianDevice& d, nb::handle p, nb::handle R,
+                             nb::handle previous) {
+            Eigen::VectorXd q(d.dof());
+            Eigen::VectorXd prev;
+            if (!previous.is_none()) prev = vector_arg("previous", previous, d.dof());
+            d.coordinates(vector_arg("p", p, 3), matrix_arg("R", R, 3, 3),
+                          previous.is_none() ? nullptr : prev.data(), q.data());
+            return q;
+          }, "p"_a, "R"_a, "previous"_a = nb::none(),
+          "Coordinates (dof,) of the SDK's position p (3,) [m] and rotation R (3, 3); the angles "
+          "on the branch nearest `previous` (dof,).")
+      .def("sdk_pose", [](const CartesianDevice& d, nb::handle q) {
+            const Eigen::VectorXd x = vector_arg("q", q, d.dof());
+            Eigen::Vector3d p;
+            Eigen::Matrix3d R;
+            d.sdk_pose(x.data(), p, R);
+            return nb::make_tuple(p, R);
+          }, "q"_a, "(p (3,) [m], R (3, 3)): the SDK's reading at coordinates q.")
+      .def("rates", [](const CartesianDevice& d, nb::handle q, nb::handle v, nb::handle w) {
+            const Eigen::VectorXd x = vector_arg("q", q, d.dof());
+            Eigen::VectorXd dq(d.dof());
+            if (!d.rates(x.data(), vector_arg("v", v, 3), vector_arg("w", w, 3), dq.data())) {
+              throw std::invalid_argument("q: at the gimbal lock (cos b = 0): no angle rates");
+            }
+            return dq;
+          }, "q"_a, "v"_a, "w"_a,
+          "Coordinate rates (dof,) of the SDK's linear v [m/s] and angular w [rad/s] velocity.")
+      .def("wrench", [](const CartesianDevice& d, nb::handle q, nb::handle tau) {
+            const Eigen::VectorXd x = vector_arg("q", q, d.dof());
+            const Eigen::VectorXd t = vector_arg("tau", tau, d.dof());
+            Eigen::Vector3d f, mo;
+            if (!d.wrench(x.data(), t.data(), f, mo)) {
+              throw std::invalid_argument("q: at the gimbal lock (cos b = 0): no torque");
+            }
+            Eigen::VectorXd out(6);
+            out << f, mo;
+            return out;
+          }, "q"_a, "tau"_a,
+          "The handle wrench (6,) [N; N·m] whose coordinate torques are tau: J^T w = tau.");
+  cartesian.attr("MODELS") = nb::module_::import_("builtins").attr("tuple")(
+      nb::cast(cartesian_model_names()));
 }
 
 }  // namespace vmpy

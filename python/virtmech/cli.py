@@ -14,10 +14,12 @@ virtmech schema                       the JSON Schema of the scenario format
 virtmech bench [ARGS...]              benchmarks (virtmech.bench)
 virtmech view [SCENARIO | LOG_DIR]    a live 3-D viewer in the browser, the mouse as the hand;
              [--port P] [--open]      or a run's log played back (docs/viewer.md)
-virtmech drive SCENARIO --device openhaptics   the scenario's mechanism on a real device
+virtmech drive SCENARIO --device openhaptics|forcedimension
              [--library PATH] [--device-name NAME] [--duration S] [--out DIR]
              [--format csv|parquet] [--watchdog-ms MS] [--figures] [--view PORT]
-             [--quiet]                (docs/devices.md, "Running on a real Touch")
+             [--quiet]                the scenario's mechanism on a real device
+                                      (docs/devices.md, "Running on a real Touch" and
+                                      "Running on a Force Dimension device")
 virtmech ros2 SCENARIO [--duration S] [--set KEY=VALUE ...] [--ros-args ...]
                                       the scenario's renderer as a ROS 2 node (docs/ros2.md)
 virtmech ros2-sim SCENARIO [--lockstep] [--command TOPIC] [--duration S] [--out DIR]
@@ -663,14 +665,17 @@ def _add_drive(sub) -> None:
     )
     dr.add_argument(
         "--device",
-        choices=("openhaptics",),
+        choices=("openhaptics", "forcedimension"),
         default="openhaptics",
-        help="the device's SDK: openhaptics (Touch, PHANTOM Omni; the default)",
+        help="the device's SDK: openhaptics (Touch, PHANTOM Omni; the default) or "
+        "forcedimension (omega.3/6/7, sigma.7, Novint Falcon: [device] type = "
+        "\"CartesianDevice\")",
     )
     dr.add_argument(
         "--library",
         metavar="PATH",
-        help="the SDK's library (default: libHD.so on the loader's path, then /opt/OpenHaptics)",
+        help="the SDK's library (default: libHD.so on the loader's path, then /opt/OpenHaptics; "
+        "libdhd.so on the loader's path)",
     )
     dr.add_argument(
         "--device-name",

@@ -1,8 +1,13 @@
 """``virtmech drive``: a scenario's controller on a real haptic device.
 
-    virtmech drive SCENARIO --device openhaptics [--library PATH] [--device-name NAME]
-                   [--duration S] [--out DIR] [--format csv|parquet] [--watchdog-ms MS]
-                   [--figures] [--view PORT] [--quiet]
+    virtmech drive SCENARIO --device openhaptics|forcedimension [--library PATH]
+                   [--device-name NAME] [--duration S] [--out DIR] [--format csv|parquet]
+                   [--watchdog-ms MS] [--figures] [--view PORT] [--quiet]
+
+openhaptics: the OpenHaptics HD SDK (Touch, PHANTOM Omni), its scheduler running the servo;
+forcedimension: the Force Dimension DHD SDK (omega.3/6/7, sigma.7, Novint Falcon; the
+scenario's [device] a CartesianDevice), the driver's own servo thread (SCHED_FIFO where
+permitted, else a warning and the jitter measured at the end).
 
 1. The scenario's [device], [mechanism] (and [set]) and [controller] say what to render; its
    simulation's sections ([physics], [human], [[intent]], [initial], [checks], [sensors] but
@@ -41,8 +46,8 @@ import virtmech as vm
 
 from .errors import UserError
 
-#: the devices `drive` can drive
-DEVICES = ("openhaptics",)
+#: the devices `drive` can drive: their SDKs
+DEVICES = ("openhaptics", "forcedimension")
 #: a tick later than this after the last one zeroes the force, which then ramps in [ms]
 WATCHDOG_MS = 5.0
 #: no tick for this long while running is a stalled servo [s]
@@ -221,6 +226,8 @@ class DriveResult:
     out: Path | None = None
     files: list[str] = field(default_factory=list)
     metrics: dict = field(default_factory=dict)
+    #: the servo's measured timing where it ran at normal priority ("": at real-time priority)
+    jitter: str = ""
 
 
 class _Stop:
@@ -364,6 +371,55 @@ def run(
     device that does not match the scenario) and DeviceFault for a device that fails before
     the servo runs; a fault while running ends the run (DriveResult.exit_code 1). SIGINT and
     SIGTERM end the run (exit 0) from the moment the device is opened."""
+    _check_options(device, watchdog_ms, duration_s, quiet, view_port)
+    S = scenario.data
+
+    def notify(message: str) -> None:
+        if not quiet:
+            print(f"virtmech drive: {message}", file=sys.stderr)
+
+    model = rig_for(scenario).device  # the device model the device is checked against
+    driver = _driver_for(device, library, device_name)
+    viewer = None
+    with _Stop() as stop:
+        _opened(driver, model, f"{scenario.source}: [device] {S['device']['type']}")
+        try:
+            info = dict(driver.info)
+            period = float(S["controller"]["period_s"])
+            _check_rate(scenario.source, info, period)
+            calibration = _calibrated(driver, notify, stop)
+            if calibration is None:
+                message = "stopped (interrupted) before the servo started"
+                return DriveResult("interrupted", 0, message, {}, info)
+            rig = rig_for(scenario, _force_limit(S, model, info), watchdog_ms * 1e-3)
+            cutoff = float(S["sensors"]["velocity_cutoff_hz"])
+            rows = LogRows(rig)
+            if view_port is not None:  # before the servo: a port taken is a mistake, not a fault
+                viewer = _viewer(rig, view_port, notify)
+            _start(driver, rig, period, cutoff, scenario.source, notify)
+            sinks = _sinks(out, fmt, rows.columns, figures)
+            if viewer is not None:
+                sinks.append(viewer.replay.append)
+            result = _serve(driver, scenario.name, rows, stop, duration_s, sinks, quiet)
+        finally:
+            driver.stop()
+            if viewer is not None:
+                viewer.stop()
+    result.info = {**info, "calibration": calibration}
+    if hasattr(driver, "priority_note"):
+        result.info["realtime_priority"] = not driver.priority_note
+    if getattr(driver, "priority_note", "") and result.stats:
+        result.jitter = _jitter(result.stats, period)
+        notify(f"warning: the servo thread ran at normal priority: {result.jitter}")
+    result.out = Path(out) if out is not None else None
+    if out is not None:
+        _finish(result, rig, rows, out, fmt, figures, cutoff, watchdog_ms)
+    return result
+
+
+def _check_options(device: str, watchdog_ms: float, duration_s: float | None, quiet: bool,
+                   view_port: int | None) -> None:
+    """run()'s options, each refused by name (UserError), and the extras they need."""
     if device not in DEVICES:
         raise UserError(f"--device {device}: unknown device; expected one of {', '.join(DEVICES)}")
     if not watchdog_ms > 0:
@@ -374,55 +430,53 @@ def run(
         _require_rich()
     if view_port is not None:
         _require_viewer()
+
+
+def _check_rate(source: str, info: dict, period: float) -> None:
+    """The scenario's period against the rate the device's servo runs at (where it says)."""
+    rate = float(info.get("update_rate_hz", math.nan))
+    if math.isfinite(rate) and abs(rate * period - 1.0) > 0.01:
+        raise UserError(
+            f"{source}: controller.period_s {period:g}: the device's servo runs "
+            f"at {rate:g} Hz (HD_UPDATE_RATE); expected period_s = {1.0 / rate:g}"
+        )
+
+
+def _start(driver, rig, period: float, cutoff: float, source: str, notify) -> None:
+    """Starts the servo with the rig's renderer: a device that does not match the scenario is
+    a UserError, one that fails a DeviceFault; a servo thread below real-time priority is
+    told."""
     d = _driver_module()
-    S = scenario.data
+    try:
+        driver.start(rig.renderer, period_s=period, velocity_cutoff_hz=cutoff)
+    except d.DeviceMismatch as e:
+        raise UserError(f"{source}: {e}") from None
+    except d.DeviceFault as e:
+        raise DeviceFault(str(e)) from None
+    if getattr(driver, "priority_note", ""):
+        notify(f"warning: {driver.priority_note}")
 
-    def notify(message: str) -> None:
-        if not quiet:
-            print(f"virtmech drive: {message}", file=sys.stderr)
 
-    model = rig_for(scenario).device  # the device model the device is checked against
-    driver = d.OpenHapticsDriver(library or "", device_name or "")
-    viewer = None
-    with _Stop() as stop:
-        _opened(driver, model, f"{scenario.source}: [device] {S['device']['type']}")
-        try:
-            info = dict(driver.info)
-            period = float(S["controller"]["period_s"])
-            rate = float(info.get("update_rate_hz", math.nan))
-            if math.isfinite(rate) and abs(rate * period - 1.0) > 0.01:
-                raise UserError(
-                    f"{scenario.source}: controller.period_s {period:g}: the device's servo runs "
-                    f"at {rate:g} Hz (HD_UPDATE_RATE); expected period_s = {1.0 / rate:g}"
-                )
-            calibration = _calibrated(driver, notify, stop)
-            if calibration is None:
-                message = "stopped (interrupted) before the servo started"
-                return DriveResult("interrupted", 0, message, {}, info)
-            rig = rig_for(scenario, _force_limit(S, model, info), watchdog_ms * 1e-3)
-            cutoff = float(S["sensors"]["velocity_cutoff_hz"])
-            rows = LogRows(rig)
-            if view_port is not None:  # before the servo: a port taken is a mistake, not a fault
-                viewer = _viewer(rig, view_port, notify)
-            try:
-                driver.start(rig.renderer, period_s=period, velocity_cutoff_hz=cutoff)
-            except d.DeviceMismatch as e:
-                raise UserError(f"{scenario.source}: {e}") from None
-            except d.DeviceFault as e:
-                raise DeviceFault(str(e)) from None
-            sinks = _sinks(out, fmt, rows.columns, figures)
-            if viewer is not None:
-                sinks.append(viewer.replay.append)
-            result = _serve(driver, scenario.name, rows, stop, duration_s, sinks, quiet)
-        finally:
-            driver.stop()
-            if viewer is not None:
-                viewer.stop()
-    result.info = {**info, "calibration": calibration}
-    result.out = Path(out) if out is not None else None
-    if out is not None:
-        _finish(result, rig, rows, out, fmt, figures, cutoff, watchdog_ms)
-    return result
+def _driver_for(device: str, library: str | None, device_name: str | None):
+    """The driver of the SDK `device` names (DEVICES)."""
+    d = _driver_module()
+    if device == "forcedimension":
+        if device_name:
+            raise UserError(
+                f"--device-name {device_name}: only --device openhaptics names its device; "
+                "the Force Dimension SDK opens the first device it finds"
+            )
+        return d.ForceDimensionDriver(library or "")
+    return d.OpenHapticsDriver(library or "", device_name or "")
+
+
+def _jitter(stats: dict, period_s: float) -> str:
+    """The servo's timing as measured: its worst gap between ticks against the period, and
+    its late ticks."""
+    return (
+        f"worst gap between ticks {stats['worst_gap_s'] * 1e3:.2f} ms for a period of "
+        f"{period_s * 1e3:g} ms, {stats['late']} late ticks of {stats['ticks']}"
+    )
 
 
 def _require_viewer() -> None:
@@ -548,9 +602,11 @@ def _ending(reason: str, st: dict, driver) -> tuple[str, int]:
     """The run's last line and exit status."""
     at = f"at t = {st.get('elapsed_s', 0.0):.3f} s"
     safe = "torque zeroed, scheduler stopped, device disabled"
+    if type(driver).__name__ == "ForceDimensionDriver":
+        safe = "force zeroed, servo thread stopped, device stopped and closed"
     if reason == "device_error":
         code = int(st["device_error"])
-        advice = HD_ADVICE.get(code)
+        advice = HD_ADVICE.get(code) if type(driver).__name__ == "OpenHapticsDriver" else None
         return (
             f"device error {driver.describe_error(code)} {at}: {safe}"
             + (f"; {advice}" if advice else ""),

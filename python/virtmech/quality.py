@@ -605,6 +605,25 @@ def stability_map(
 LAWS = ("eq. 11", "eq. 26", "naive", "eq. 26, passive")
 
 
+def fully_actuated_variant(device: dict) -> dict | None:
+    """The keys that make a scenario's [device] table its fully actuated variant, to compare
+    renderings with: the Omni with motors on its gimbal too; a Cartesian device that senses
+    its wrist but does not drive it (omega.6, omega.7) as the sigma.7, which drives it. None
+    where the device has no such variant in the format."""
+    import virtmech as vm
+
+    if device["type"] == "PhantomOmni":
+        return {"actuated": [True] * 6}
+    if device["type"] == "CartesianDevice":
+        d = vm.CartesianDevice(device["model"])
+        if d.orientation_sensed and not d.torque_actuated:
+            full = next(
+                m for m in vm.CartesianDevice.MODELS if vm.CartesianDevice(m).torque_actuated
+            )
+            return {"model": full}
+    return None
+
+
 def fidelity(setup: Setup, workers: int | None = 1) -> dict:
     """The scenario (with its own intents and translational gains) on the device as it is,
     for each law of LAWS, against a fully actuated variant of the device (every joint
@@ -612,19 +631,20 @@ def fidelity(setup: Setup, workers: int | None = 1) -> dict:
     axis: the relative rms of the force difference, |f - f_full|_rms / |f_full|_rms, over
     the run, and the rms of each. "naive" renders the fully actuated law on the
     under-actuated device and drops what it cannot render."""
-    import virtmech as vm
+    from .builder import make_device
 
     data = setup.scenario.data
-    if data["device"]["type"] != "PhantomOmni":
+    variant = fully_actuated_variant(data["device"])
+    if variant is None:
         raise ValueError(
-            "fidelity: needs a device with a fully actuated variant (PhantomOmni), "
-            f"got {data['device']['type']!r}"
+            "fidelity: needs a device with a fully actuated variant (PhantomOmni, or a "
+            f"CartesianDevice omega.6 or omega.7), got {data['device']['type']!r}"
         )
     L = setup._mech.length_scale
     given = setup.raw.get("controller", {})
-    omni = vm.PhantomOmni()
-    k = float(given["kp"][0]) if "kp" in given else omni.stiffness
-    b = float(given["kv"][0]) if "kv" in given else omni.damping
+    device = make_device(data["device"])
+    k = float(given["kp"][0]) if "kp" in given else device.stiffness
+    b = float(given["kv"][0]) if "kv" in given else device.damping
     U = [1.0, 1.0, 1.0, L * L, L * L, L * L]
     base = {key: v for key, v in given.items() if key not in ("law", "passivity")}
     full = {
@@ -653,7 +673,7 @@ def fidelity(setup: Setup, workers: int | None = 1) -> dict:
             **raw,
             "name": f"{raw['name']}-full",
             "controller": full,
-            "device": {**raw["device"], "actuated": [True] * 6},
+            "device": {**raw["device"], **variant},
         }
     )
     runs = run_all(raws, workers)
@@ -733,7 +753,7 @@ def measure(
         "work": work(setup, workers=workers, rest=rest),
         "limit_cycles": limit_cycles(setup, workers=workers, rest=rest),
     }
-    if setup.scenario.data["device"]["type"] == "PhantomOmni":
+    if fully_actuated_variant(setup.scenario.data["device"]) is not None:
         out["fidelity"] = fidelity(setup, workers=workers)
     if stability_map_grid is not None:
         out["stability_map"] = stability_map(setup, *stability_map_grid, workers=workers)

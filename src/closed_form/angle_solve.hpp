@@ -27,14 +27,12 @@ inline Eigen::Matrix<double, 3, 2> tangent_basis(const Eigen::Vector3d& u) noexc
 
 // The angle x with its cosine and sine.
 [[gnu::noinline]] inline Angle at_angle(double x) noexcept {
-  Angle a{x, 1.0, 0.0};
-  detail::sincos(x, a.s, a.c);
-  return a;
+  return {x, std::cos(x), std::sin(x)};
 }
 
 // The angle a.x + d with its cosine and sine from a's: for |d| < 1e-3 by the angle sum with
 // the Taylor polynomials of cos d and sin d (their next terms, d^6 / 720 and d^7 / 5040,
-// are below 1e-20: exact to rounding), which saves a sincos; else directly.
+// are below 1e-20: exact to rounding), which saves a sine and a cosine; else directly.
 inline Angle advanced(const Angle& a, double d) noexcept {
   const double x = a.x + d;
   if (!(std::abs(d) < 1e-3)) return at_angle(x);
@@ -49,9 +47,9 @@ inline Angle advanced(const Angle& a, double d) noexcept {
 // inside (with its cosine and sine): Newton steps kept inside the shrinking bracket,
 // bisection where Newton would leave it. derivatives(x, cos x, sin x, f1, f2, f3) gives
 // f'(x), f''(x) and f'''(x) (NaN where f is not smooth enough for it to bound the step's
-// error); each step carries the cosine and sine on (advanced(): a sincos only for steps of
-// 1e-3 or more, and after a bisection); the root is returned with its cosine and sine,
-// which the callers need next.
+// error); each step carries the cosine and sine on (advanced(): a sine and cosine only for
+// steps of 1e-3 or more, and after a bisection); the root is returned with its cosine and
+// sine, which the callers need next.
 template <typename Derivatives>
 Angle bracketed_newton(const Derivatives& derivatives, double lo, double hi,
                        const Angle& start) noexcept {

@@ -19,7 +19,8 @@ double direction(const Eigen::Vector2d& q, double& cos_x, double& sin_x) noexcep
     cos_x = q.x() / n;
     sin_x = q.y() / n;
   } else {  // (+-0, +-0): atan2's signed zeros decide
-    detail::sincos(x, sin_x, cos_x);
+    sin_x = std::sin(x);
+    cos_x = std::cos(x);
   }
   return x;
 }
@@ -55,7 +56,7 @@ double arc_minimiser(const ArcSetup& g, double a, double b, double c, double w_r
     return g.theta_p;
   }
   // on t in [0, |span|] from theta_p toward theta_o: f' runs from - to +. With x - theta_p =
-  // dir t and x - theta_o = dir (t - |span|), one sincos of t per step gives both terms
+  // dir t and x - theta_o = dir (t - |span|), one sine and cosine of t per step give both terms
   const double dir = g.dir, width = g.width, cs = g.cs, ss = g.ss;
   // Start at the minimiser of the two terms' quadratic models: a t^2 / 2 and
   // w_r b (|span| - t)^2 (acos(c + b cos x)^2 ~ b x^2 near its minimum). Strictly inside,

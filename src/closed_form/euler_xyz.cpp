@@ -17,7 +17,10 @@ Eigen::Vector3d euler_xyz_nearest(const Eigen::Matrix3d& M, const Eigen::Vector3
   const bool lock = !(cb > 1e-12);
   const double a = lock ? start[0] : detail::atan2(-M(1, 2), M(2, 2));
   double ca = M(2, 2) / cb, sa = -M(1, 2) / cb;
-  if (lock) detail::sincos(a, sa, ca);
+  if (lock) {
+    sa = std::sin(a);
+    ca = std::cos(a);
+  }
   // rows 0 and 1 of N = Rx(-a) M, and N(2, 2) (= |cos b| off the lock)
   const double n02 = M(0, 2), n10 = ca * M(1, 0) + sa * M(2, 0), n11 = ca * M(1, 1) + sa * M(2, 1);
   const double n22 = lock ? -sa * M(1, 2) + ca * M(2, 2) : cb;

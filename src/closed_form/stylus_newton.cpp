@@ -206,8 +206,8 @@ class StylusNewton {
     double cn = 1.0 - n2 * (0.5 - n2 * (1.0 / 24.0));
     double sn_n = 1.0 - n2 * (1.0 / 6.0 - n2 * (1.0 / 120.0));
     if (!(n < 1e-3)) {
-      detail::sincos(n, sn_n, cn);
-      sn_n /= n;
+      cn = std::cos(n);
+      sn_n = std::sin(n) / n;
     }
     u_t = n > 0.0
               ? Eigen::Vector3d((cn * u + sn_n * t * (E * step.template tail<2>())).normalized())

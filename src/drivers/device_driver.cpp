@@ -128,7 +128,7 @@ void DeviceDriver::tick() noexcept {
   DriverServo& servo = *servo_;
   const std::uint32_t read_error = read_joints(q_.data());
   servo.device_error(read_error);
-  servo.tick(q_.data(), t_s, tau_.data());
+  servo.tick(q_.data(), t_s, tau_.data(), read_velocities());
   const std::uint32_t write_error = write_torques(tau_.data());
   servo.end_tick(write_error, CycleClock::microseconds(c0, CycleClock::now()));
 }

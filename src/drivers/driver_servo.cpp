@@ -136,29 +136,15 @@ void DriverServo::device_error(std::uint32_t code) noexcept {
   }
 }
 
-std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau) noexcept {
+std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau,
+                                const double* dq_device) noexcept {
   const std::uint64_t entered = CycleClock::now();
-  // the record's slot, claimed now and fetched while the renderer steps: at a servo rate of
-  // 1 kHz it is cold, and filling it cold would cost more than the rest of the tick
-  pending_ = ring_.claim();
-#if defined(__GNUC__) || defined(__clang__)
-  if (pending_ != nullptr) {
-    const char* p = reinterpret_cast<const char*>(pending_);
-    for (std::size_t at = 0; at < sizeof(TickRecord); at += 64) __builtin_prefetch(p + at, 1, 3);
-  }
-#endif
-  const double gap = t_s - last_t_;  // NaN on the first tick
-  std::uint32_t flags = 0;
-  if (gap > settings_.period_s + settings_.late_s) {
-    flags |= driver_flag::kLate;
-    late_.fetch_add(1, std::memory_order_relaxed);
-  }
-  if (std::isnan(first_t_)) first_t_ = t_s;
-  last_t_ = t_s;
-
+  claim_record();
+  double gap = 0.0;
+  std::uint32_t flags = clock_in(t_s, gap);
   const StopReason stop = reason();
   double step_us = 0.0;
-  const CycleOutput* out = ctrl_ ? &out_ : &set_out_.cycle;
+  const double* dq_served = nullptr;  // the device's velocities, where the tick used them
   if (stop != StopReason::kNone) {
     // the run has ended: zero torque, the renderer no longer stepped
     flags |= stop == StopReason::kRequested    ? driver_flag::kStopping
@@ -166,46 +152,95 @@ std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau) noexce
                                                 : driver_flag::kFaultHeld;
     for (int i = 0; i < n_; ++i) tau[i] = 0.0;
   } else {
-    const Eigen::Map<const Eigen::VectorXd> qv(q, n_);
-    if (!qv.allFinite()) {
-      flags |= driver_flag::kBadReading;
-      filter_.reset();  // the next good reading starts the estimate afresh
-    }
-    const JointVector& dq = qv.allFinite() ? filter_.update(q) : zero_;
-    const std::uint64_t c0 = CycleClock::now();
-    std::uint32_t status = 0;
-    if (ctrl_) {
-      status = ctrl_->step(q, dq.data(), out_, t_s);
-    } else {
-      status = set_->step(q, dq.data(), set_out_, t_s);
-    }
-    step_us = CycleClock::microseconds(c0, CycleClock::now());
-    if (status & status::kWatchdog) {
-      // a late tick: zero force now; the renderer ramps in again from the next tick
-      flags |= driver_flag::kWatchdog;
-      watchdog_.fetch_add(1, std::memory_order_relaxed);
-    }
-    if (status & status::kFaultMask) {
-      if (std::isnan(fault_since_)) fault_since_ = t_s;
-      if (t_s - fault_since_ >= settings_.fault_limit_s) {
-        fault_status_.store(status & status::kFaultMask, std::memory_order_relaxed);
-        stop_for(StopReason::kFaultHeld);
-        flags |= driver_flag::kFaultHeld;
-      }
-    } else {
-      fault_since_ = std::numeric_limits<double>::quiet_NaN();
-    }
-    const bool zero = (flags & driver_flag::kZeroMask) != 0;
-    for (int i = 0; i < n_; ++i) tau[i] = zero ? 0.0 : out->torque[i];
-    status_.store(status, std::memory_order_relaxed);
-    force_.store(zero ? 0.0 : out->wrench.head<3>().norm(), std::memory_order_relaxed);
+    flags = render(q, t_s, dq_device, tau, flags, step_us, dq_served);
   }
   if (flags & driver_flag::kZeroMask) {
     zero_ticks_.fetch_add(1, std::memory_order_relaxed);
     if (stop != StopReason::kNone) force_.store(0.0, std::memory_order_relaxed);
   }
   flags_.store(flags, std::memory_order_relaxed);
+  record(q, dq_served, t_s, gap, flags, step_us, tau, stop == StopReason::kNone, entered);
+  return flags;
+}
 
+// The record's slot, claimed now and fetched while the renderer steps: at a servo rate of
+// 1 kHz it is cold, and filling it cold would cost more than the rest of the tick.
+void DriverServo::claim_record() noexcept {
+  pending_ = ring_.claim();
+#if defined(__GNUC__) || defined(__clang__)
+  if (pending_ != nullptr) {
+    const char* p = reinterpret_cast<const char*>(pending_);
+    for (std::size_t at = 0; at < sizeof(TickRecord); at += 64) __builtin_prefetch(p + at, 1, 3);
+  }
+#endif
+}
+
+// The gap since the last tick (NaN on the first) and the late flag.
+std::uint32_t DriverServo::clock_in(double t_s, double& gap) noexcept {
+  gap = t_s - last_t_;
+  std::uint32_t flags = 0;
+  if (gap > settings_.period_s + settings_.late_s) {
+    flags |= driver_flag::kLate;
+    late_.fetch_add(1, std::memory_order_relaxed);
+  }
+  if (std::isnan(first_t_)) first_t_ = t_s;
+  last_t_ = t_s;
+  return flags;
+}
+
+// One step of the renderer on the reading (the device's velocities where it serves finite
+// ones, else the filter's estimate), and its torque, zero where a flag says so.
+std::uint32_t DriverServo::render(const double* q, double t_s, const double* dq_device,
+                                  double* tau, std::uint32_t flags, double& step_us,
+                                  const double*& dq_served) noexcept {
+  const CycleOutput* out = ctrl_ ? &out_ : &set_out_.cycle;
+  const Eigen::Map<const Eigen::VectorXd> qv(q, n_);
+  if (!qv.allFinite()) {
+    flags |= driver_flag::kBadReading;
+    filter_.reset();  // the next good reading starts the estimate afresh
+  }
+  const JointVector& estimate = qv.allFinite() ? filter_.update(q) : zero_;
+  const bool served =
+      dq_device != nullptr && Eigen::Map<const Eigen::VectorXd>(dq_device, n_).allFinite();
+  if (served) dq_served = dq_device;
+  const double* dq_used = served ? dq_device : estimate.data();
+  const std::uint64_t c0 = CycleClock::now();
+  const std::uint32_t status =
+      ctrl_ ? ctrl_->step(q, dq_used, out_, t_s) : set_->step(q, dq_used, set_out_, t_s);
+  step_us = CycleClock::microseconds(c0, CycleClock::now());
+  flags |= hold_faults(status, t_s);
+  const bool zero = (flags & driver_flag::kZeroMask) != 0;
+  for (int i = 0; i < n_; ++i) tau[i] = zero ? 0.0 : out->torque[i];
+  status_.store(status, std::memory_order_relaxed);
+  force_.store(zero ? 0.0 : out->wrench.head<3>().norm(), std::memory_order_relaxed);
+  return flags;
+}
+
+// A late tick's watchdog (zero force now; the renderer ramps in again from the next tick),
+// and a fault that lasts fault_limit_s ends the run.
+std::uint32_t DriverServo::hold_faults(std::uint32_t status, double t_s) noexcept {
+  std::uint32_t flags = 0;
+  if (status & status::kWatchdog) {
+    flags |= driver_flag::kWatchdog;
+    watchdog_.fetch_add(1, std::memory_order_relaxed);
+  }
+  if (status & status::kFaultMask) {
+    if (std::isnan(fault_since_)) fault_since_ = t_s;
+    if (t_s - fault_since_ >= settings_.fault_limit_s) {
+      fault_status_.store(status & status::kFaultMask, std::memory_order_relaxed);
+      stop_for(StopReason::kFaultHeld);
+      flags |= driver_flag::kFaultHeld;
+    }
+  } else {
+    fault_since_ = std::numeric_limits<double>::quiet_NaN();
+  }
+  return flags;
+}
+
+// The counters, and the tick's record into its slot (or a dropped record).
+void DriverServo::record(const double* q, const double* dq_served, double t_s, double gap,
+                         std::uint32_t flags, double step_us, const double* tau, bool stepped,
+                         std::uint64_t entered) noexcept {
   const std::uint64_t ticks = ticks_.load(std::memory_order_relaxed) + 1;
   elapsed_.store(t_s, std::memory_order_relaxed);
   if (ticks > 1 && t_s > first_t_) {
@@ -213,18 +248,18 @@ std::uint32_t DriverServo::tick(const double* q, double t_s, double* tau) noexce
     raise_to(worst_gap_, gap);
   }
   if (pending_ != nullptr) {
-    fill(*pending_, q, t_s, gap, flags, step_us, tau, stop == StopReason::kNone);
+    fill(*pending_, q, dq_served ? dq_served : filter_.velocity().data(), t_s, gap, flags,
+         step_us, tau, stepped);
     pending_->device_error = static_cast<double>(tick_device_error_);
     pending_->tick_us = CycleClock::microseconds(entered, CycleClock::now());
   } else {
     dropped_.fetch_add(1, std::memory_order_relaxed);
   }
   ticks_.store(ticks, std::memory_order_release);
-  return flags;
 }
 
-void DriverServo::fill(TickRecord& r, const double* q, double t_s, double gap,
-                       std::uint32_t flags, double step_us, const double* tau,
+void DriverServo::fill(TickRecord& r, const double* q, const double* dq, double t_s,
+                       double gap, std::uint32_t flags, double step_us, const double* tau,
                        bool stepped) const noexcept {
   const CycleOutput& o = ctrl_ ? out_ : set_out_.cycle;
   const Vector6& twist = ctrl_ ? ctrl_->data().v_R : set_->member(0).data().v_R;
@@ -235,7 +270,7 @@ void DriverServo::fill(TickRecord& r, const double* q, double t_s, double gap,
   r.flags = static_cast<double>(flags);
   r.member = ctrl_ ? 0.0 : static_cast<double>(set_out_.active);
   put(r.q, q, n_, kMaxDof);
-  put(r.dq, filter_.velocity().data(), n_, kMaxDof);
+  put(r.dq, dq, n_, kMaxDof);
   put(r.command, tau, n_, kMaxDof);
   put(r.theta, o.theta.data(), o.theta.size(), kMaxDof);
   put(r.theta_star, o.theta_star.data(), o.theta_star.size(), kMaxDof);

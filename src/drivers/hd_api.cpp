@@ -1,6 +1,8 @@
 // vm_hd_load: the OpenHaptics HD library loaded at run time (virtmech/drivers/hd_api.h).
 #include "virtmech/drivers/hd_api.h"
 
+#include "library_loader.hpp"
+
 #include <dlfcn.h>
 #include <glob.h>
 
@@ -11,10 +13,7 @@
 
 namespace {
 
-void put_error(char* error, size_t size, const std::string& message) {
-  if (error == nullptr || size == 0) return;
-  std::snprintf(error, size, "%s", message.c_str());
-}
+using virtmech::drivers::detail::put_error;
 
 // the library's files under the OpenHaptics install folders, newest version last
 std::vector<std::string> install_candidates() {
@@ -46,23 +45,11 @@ bool resolve(void* handle, vm_hd_api* api, std::string& missing) {
 
 // dlopen + resolve; the reason in `why` on failure
 bool try_load(const std::string& path, vm_hd_api* api, std::string& why) {
-  dlerror();
-  void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-  if (handle == nullptr) {
-    const char* e = dlerror();
-    why = e ? e : "cannot be loaded";
-    return false;
-  }
-  std::string missing;
-  if (!resolve(handle, api, missing)) {
-    why = "it has no function " + missing + ": not the OpenHaptics HD library";
-    dlclose(handle);
-    *api = vm_hd_api{};
-    return false;
-  }
-  api->library = handle;
-  std::snprintf(api->path, sizeof api->path, "%s", path.c_str());
-  return true;
+  auto resolve_api = [api](void* handle, std::string& missing) {
+    return resolve(handle, api, missing);
+  };
+  return virtmech::drivers::detail::load_library(path, api, "OpenHaptics HD library",
+                                                 resolve_api, why);
 }
 
 const char* const kInstall =

@@ -75,6 +75,15 @@ void OpenHapticsDriver::throw_on_error(const char* call, DriverError::Kind kind)
 }
 
 void OpenHapticsDriver::open_device(const Device& model, DeviceInfo& info) {
+  init_device(info);
+  identify(info);
+  check_against(model, info);
+  gimbal_torque_ = false;
+  for (int i = 3; i < std::min(6, model.dof()); ++i) gimbal_torque_ |= model.actuated(i);
+}
+
+// The library loaded (once) and the device initialised and made current.
+void OpenHapticsDriver::init_device(DeviceInfo& info) {
   if (hd_.library == nullptr) {
     char error[1024];
     if (vm_hd_load(settings_.library.c_str(), &hd_, error, sizeof error) != 0) {
@@ -101,6 +110,11 @@ void OpenHapticsDriver::open_device(const Device& model, DeviceInfo& info) {
                       e.errorCode);
   }
   hd_.hdMakeCurrentDevice(device_);
+}
+
+// What the device says it is: model, vendor, versions, joints sensed and driven, servo rate,
+// nominal limits.
+void OpenHapticsDriver::identify(DeviceInfo& info) {
   info.model = text(hd_.hdGetString(HD_DEVICE_MODEL_TYPE));
   info.vendor = text(hd_.hdGetString(HD_DEVICE_VENDOR));
   info.serial = text(hd_.hdGetString(HD_DEVICE_SERIAL_NUMBER));
@@ -125,8 +139,10 @@ void OpenHapticsDriver::open_device(const Device& model, DeviceInfo& info) {
   nominal(HD_NOMINAL_MAX_STIFFNESS, 1e3, info.nominal_max_stiffness_n_per_m);  // N/mm
   nominal(HD_NOMINAL_MAX_DAMPING, 1e3, info.nominal_max_damping_n_s_per_m);    // N s/mm
   throw_on_error("identifying the device", DriverError::Kind::kDevice);
+}
 
-  // the device against the model the renderer uses
+// The device against the model the renderer uses: joints sensed, joints driven, kinematics.
+void OpenHapticsDriver::check_against(const Device& model, const DeviceInfo& info) {
   const std::string device = "the device (" + (info.model.empty() ? "HD" : info.model) + ")";
   const std::string scenario = "the device model (" + model.name() + ", " +
                                std::to_string(model.dof()) + " joints)";
@@ -153,8 +169,6 @@ void OpenHapticsDriver::open_device(const Device& model, DeviceInfo& info) {
                           "\"); describe this device as [device] type = \"Device\" with its "
                           "own joints");
   }
-  gimbal_torque_ = false;
-  for (int i = 3; i < std::min(6, model.dof()); ++i) gimbal_torque_ |= model.actuated(i);
 }
 
 void OpenHapticsDriver::start_scheduler() {

@@ -27,8 +27,7 @@ Eigen::Vector2d Cylinder::lower() const noexcept { return {-kPi, -kInf}; }
 Eigen::Vector2d Cylinder::upper() const noexcept { return {kPi, kInf}; }
 
 Eigen::Vector3d Cylinder::evaluate(double u, double v) const noexcept {
-  double s, c;
-  detail::sincos(u, s, c);
+  const double s = std::sin(u), c = std::cos(u);
   return a_ + r_ * (c * e1_ + s * e2_) + v * d_;
 }
 
@@ -42,9 +41,7 @@ void Cylinder::derivatives(double u, double v, int order, SurfaceDerivatives& d)
 }
 
 Eigen::Vector3d Cylinder::normal(double u, double) const noexcept {
-  double s, c;
-  detail::sincos(u, s, c);
-  return c * e1_ + s * e2_;
+  return std::cos(u) * e1_ + std::sin(u) * e2_;
 }
 
 Eigen::Vector2d Cylinder::closest_point(const Eigen::Vector3d& p,

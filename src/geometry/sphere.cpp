@@ -30,9 +30,7 @@ Eigen::Vector2d Sphere::upper() const noexcept { return {kPi, 0.5 * kPi}; }
 
 Eigen::Vector3d Sphere::evaluate(double u, double v) const noexcept {
   v = clamp(v, -0.5 * kPi, 0.5 * kPi);
-  double su, cu, sv, cv;
-  detail::sincos(u, su, cu);
-  detail::sincos(v, sv, cv);
+  const double su = std::sin(u), cu = std::cos(u), sv = std::sin(v), cv = std::cos(v);
   return c_ + r_ * (A_ * Eigen::Vector3d(cu * cv, su * cv, sv));
 }
 

@@ -23,6 +23,7 @@ void add_builtin(Registry& r) {
   add_phantom_omni(r);
   add_planar3r(r);
   add_serial_device(r);
+  add_cartesian_device(r);
 }
 
 }  // namespace virtmech::kinds

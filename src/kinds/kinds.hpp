@@ -20,6 +20,7 @@ void add_serial_chain(Registry& r);
 void add_phantom_omni(Registry& r);
 void add_planar3r(Registry& r);
 void add_serial_device(Registry& r);
+void add_cartesian_device(Registry& r);
 void add_nurbs_curve(Registry& r);
 void add_nurbs_surface(Registry& r);
 void add_sphere(Registry& r);

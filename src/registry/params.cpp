@@ -112,73 +112,87 @@ ParamValue checked_array(const ParamSpec& s, const ParamValue& v, const std::str
   return v;
 }
 
+ParamValue checked_number(const ParamSpec& s, const ParamValue& v, const std::string& where) {
+  double x = 0.0;
+  if (const auto* d = std::get_if<double>(&v)) {
+    x = *d;
+  } else if (const auto* i = std::get_if<long long>(&v)) {
+    x = static_cast<double>(*i);
+  } else {
+    wrong_kind(where, range_text(s, "a number").c_str());
+  }
+  if (!in_range(s, x)) {
+    throw std::invalid_argument(where + ": expected " + range_text(s, "a number") + ", got " +
+                                number_text(x));
+  }
+  return x;
+}
+
+ParamValue checked_integer(const ParamSpec& s, const ParamValue& v, const std::string& where) {
+  const auto* i = std::get_if<long long>(&v);
+  if (!i) wrong_kind(where, range_text(s, "an integer").c_str());
+  if (!in_range(s, static_cast<double>(*i))) {
+    throw std::invalid_argument(where + ": expected " + range_text(s, "an integer") + ", got " +
+                                std::to_string(*i));
+  }
+  return v;
+}
+
+ParamValue checked_string(const ParamSpec& s, const ParamValue& v, const std::string& where) {
+  const auto* t = std::get_if<std::string>(&v);
+  if (!t) wrong_kind(where, "a string");
+  if (s.choices.empty()) return v;
+  bool known = false;
+  std::string list;  // "'a', 'b' or 'c'"
+  for (size_t i = 0; i < s.choices.size(); ++i) {
+    known = known || *t == s.choices[i];
+    list += (i ? (i + 1 == s.choices.size() ? " or '" : ", '") : "'") + s.choices[i] + "'";
+  }
+  if (!known) throw std::invalid_argument(where + ": expected " + list + ", got '" + *t + "'");
+  return v;
+}
+
+ParamValue checked_bools(const ParamSpec& s, const ParamValue& v, const std::string& where) {
+  const auto* b = std::get_if<std::vector<bool>>(&v);
+  if (!b) wrong_kind(where, "a list of true or false");
+  const long n = s.shape.empty() ? -1 : s.shape[0];
+  if (n >= 0 && static_cast<long>(b->size()) != n) {
+    throw std::invalid_argument(where + ": expected " + std::to_string(n) +
+                                " values true or false, got " + std::to_string(b->size()));
+  }
+  return v;
+}
+
+ParamValue checked_tables(const ParamSpec& s, const ParamValue& v, const std::string& where) {
+  const auto* t = std::get_if<std::vector<Params>>(&v);
+  if (!t) wrong_kind(where, "an array of tables");
+  std::vector<Params> out;
+  for (size_t i = 0; i < t->size(); ++i) {
+    out.push_back(checked_table(s.fields, (*t)[i], where + "[" + std::to_string(i) + "]"));
+  }
+  return out;
+}
+
 ParamValue checked(const ParamSpec& s, const ParamValue& v, const std::string& where) {
   switch (s.kind) {
-    case ParamKind::kNumber: {
-      double x = 0.0;
-      if (const auto* d = std::get_if<double>(&v)) {
-        x = *d;
-      } else if (const auto* i = std::get_if<long long>(&v)) {
-        x = static_cast<double>(*i);
-      } else {
-        wrong_kind(where, range_text(s, "a number").c_str());
-      }
-      if (!in_range(s, x)) {
-        throw std::invalid_argument(where + ": expected " + range_text(s, "a number") +
-                                    ", got " + number_text(x));
-      }
-      return x;
-    }
-    case ParamKind::kInteger: {
-      const auto* i = std::get_if<long long>(&v);
-      if (!i) wrong_kind(where, range_text(s, "an integer").c_str());
-      if (!in_range(s, static_cast<double>(*i))) {
-        throw std::invalid_argument(where + ": expected " + range_text(s, "an integer") +
-                                    ", got " + std::to_string(*i));
-      }
-      return v;
-    }
+    case ParamKind::kNumber:
+      return checked_number(s, v, where);
+    case ParamKind::kInteger:
+      return checked_integer(s, v, where);
     case ParamKind::kBool:
       if (!std::holds_alternative<bool>(v)) wrong_kind(where, "true or false");
       return v;
-    case ParamKind::kString: {
-      const auto* t = std::get_if<std::string>(&v);
-      if (!t) wrong_kind(where, "a string");
-      if (!s.choices.empty()) {
-        bool known = false;
-        std::string list;
-        for (size_t i = 0; i < s.choices.size(); ++i) {
-          known = known || *t == s.choices[i];
-          list += (i ? (i + 1 == s.choices.size() ? " or '" : ", '") : "'") + s.choices[i] + "'";
-        }
-        if (!known) throw std::invalid_argument(where + ": expected " + list + ", got '" + *t + "'");
-      }
-      return v;
-    }
+    case ParamKind::kString:
+      return checked_string(s, v, where);
     case ParamKind::kArray:
       return checked_array(s, v, where);
-    case ParamKind::kBools: {
-      const auto* b = std::get_if<std::vector<bool>>(&v);
-      if (!b) wrong_kind(where, "a list of true or false");
-      const long n = s.shape.empty() ? -1 : s.shape[0];
-      if (n >= 0 && static_cast<long>(b->size()) != n) {
-        throw std::invalid_argument(where + ": expected " + std::to_string(n) +
-                                    " values true or false, got " + std::to_string(b->size()));
-      }
-      return v;
-    }
+    case ParamKind::kBools:
+      return checked_bools(s, v, where);
     case ParamKind::kCurve:
     case ParamKind::kSurface:
       return checked_shape(s, v, where);
-    case ParamKind::kTables: {
-      const auto* t = std::get_if<std::vector<Params>>(&v);
-      if (!t) wrong_kind(where, "an array of tables");
-      std::vector<Params> out;
-      for (size_t i = 0; i < t->size(); ++i) {
-        out.push_back(checked_table(s.fields, (*t)[i], where + "[" + std::to_string(i) + "]"));
-      }
-      return out;
-    }
+    case ParamKind::kTables:
+      return checked_tables(s, v, where);
   }
   return v;
 }

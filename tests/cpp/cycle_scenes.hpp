@@ -26,7 +26,7 @@ inline std::vector<std::string> scene_names() {
           "OmniPointPivot", "OmniLineGuide",       "Arm6RSerialChain",
           "Arm6RProbeUnilateral", "Planar3RPlanarArm", "OmniSurfaceProbeNurbs",
           "OmniSurfaceProbeSphereUnilateral", "Arm6RSurfaceProbeNurbs", "OmniCurveGuide",
-          "Arm6RHandlePath"};
+          "Arm6RHandlePath", "Omega6PlanarArm", "Sigma7Probe", "FalconProbeUnilateral"};
 }
 
 inline Scene make_scene(const std::string& name) {
@@ -76,6 +76,18 @@ inline Scene make_scene(const std::string& name) {
   if (name == "OmniCurveGuide") {
     return {omni, std::make_shared<CurveGuide>(test_letter(Eigen::Vector3d(0, 0, -0.1)), 0.1, z)};
   }
+  if (name == "Omega6PlanarArm") {
+    return {std::make_shared<CartesianDevice>("omega.6"),
+            std::make_shared<PlanarArm>(0.06 * z, x, 0.08, -z)};
+  }
+  if (name == "Sigma7Probe") {
+    return {std::make_shared<CartesianDevice>("sigma.7"),
+            std::make_shared<Probe>(-0.05 * z, z, 0.05, x)};
+  }
+  if (name == "FalconProbeUnilateral") {
+    return {std::make_shared<CartesianDevice>("falcon"),
+            std::make_shared<Probe>(-0.05 * z, z, 0.05, x, /*unilateral=*/true)};
+  }
   if (name == "Arm6RHandlePath") {
     return {six_dof_arm(),
             std::make_shared<HandlePath>(test_letter(Eigen::Vector3d(0.3, 0, 0.2)), z, 0.1)};
@@ -90,12 +102,17 @@ inline ControllerSettings cycle_settings() {
   return s;
 }
 
-/// Joint state of cycle k [rad or m; per s]: every joint wanders slowly.
-inline void joint_state(int k, JointVector& q, JointVector& dq) {
+/// Joint state of cycle k [rad or m; per s]: every joint wanders slowly, a revolute one
+/// over 0.3 +- 0.4 rad, a prismatic one of a device over +-40 mm.
+inline void joint_state(int k, JointVector& q, JointVector& dq, const Device* device = nullptr) {
   const double t = k * 1e-3;
   for (int i = 0; i < q.size(); ++i) {
     q[i] = 0.3 + 0.4 * std::sin(0.7 * t + i);
     dq[i] = 0.28 * std::cos(0.7 * t + i);
+    if (device != nullptr && device->joint_type(i) == JointType::kPrismatic) {
+      q[i] = 0.1 * (q[i] - 0.3);
+      dq[i] *= 0.1;
+    }
   }
 }
 
@@ -116,7 +133,7 @@ inline void sweep_state(const Device& d, int k, JointVector& q, JointVector& dq)
 /// eighth a sweep over the whole range, a third in a velocity the device cannot make (a
 /// fault) and 100 cycles later a one-cycle glitch of 0.01 rad.
 inline void cycle_state(const Device& d, int k, int cycles, JointVector& q, JointVector& dq) {
-  joint_state(k, q, dq);
+  joint_state(k, q, dq, &d);
   if (k >= cycles / 8 && k < cycles / 4) sweep_state(d, k, q, dq);
   if (k == cycles / 3) dq[0] = 1e300;
   if (k == cycles / 3 + 100) q[q.size() > 2 ? 2 : 0] += 0.01;

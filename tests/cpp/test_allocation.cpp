@@ -34,6 +34,7 @@
 #include "heap_counter.hpp"
 #include "virtmech.h"
 #include "virtmech/drivers/driver_servo.hpp"
+#include "virtmech/drivers/force_dimension.hpp"
 #include "virtmech/drivers/openhaptics.hpp"
 #include "virtmech_driver.h"
 
@@ -529,6 +530,24 @@ TEST(Allocation, CApiDriverTickAllocatesNothing) {
   vm_controller_destroy(c);
 }
 
+#if defined(VM_STANDIN_HD) || defined(VM_STANDIN_DHD)
+// A running driver's ticks over 0.4 s (after 50 ms), its records read on this thread: every
+// heap call of the process counted; `ticks`: how many ticks ran meanwhile.
+HeapCount count_running_driver(drivers::DeviceDriver& driver, std::uint64_t& ticks) {
+  std::vector<drivers::TickRecord> records(1024);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const std::uint64_t ticks0 = driver.servo()->stats().ticks;
+  start_heap_count();
+  for (int i = 0; i < 40; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    driver.servo()->read_records(records.data(), records.size());
+  }
+  const HeapCount n = stop_heap_count();
+  ticks = driver.servo()->stats().ticks - ticks0;
+  return n;
+}
+#endif
+
 #ifdef VM_STANDIN_HD
 TEST(Allocation, OpenHapticsTickAllocatesNothing) {
   // the driver's tick in the stand-in HD library's scheduler thread (its HD calls included),
@@ -544,19 +563,41 @@ TEST(Allocation, OpenHapticsTickAllocatesNothing) {
   driver.open(*s.device);
   ASSERT_EQ(driver.calibrate(), drivers::Calibration::kOk);
   driver.start(c);
-  std::vector<drivers::TickRecord> records(1024);
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  const std::uint64_t ticks0 = driver.servo()->stats().ticks;
-  start_heap_count();
-  for (int i = 0; i < 40; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    driver.servo()->read_records(records.data(), records.size());
-  }
-  const HeapCount n = stop_heap_count();
-  const std::uint64_t ticks = driver.servo()->stats().ticks - ticks0;
+  std::uint64_t ticks = 0;
+  const HeapCount n = count_running_driver(driver, ticks);
   driver.stop();
   unsetenv("VIRTMECH_STANDIN_CONFIG");
   EXPECT_GT(ticks, 200u);
+  EXPECT_EQ(n.allocations, 0);
+  EXPECT_EQ(n.frees, 0);
+  EXPECT_EQ(n.news, 0);
+}
+#endif
+
+#ifdef VM_STANDIN_DHD
+TEST(Allocation, ForceDimensionTickAllocatesNothing) {
+  // the driver's tick in its own loop thread (its DHD calls included, on the stand-in DHD
+  // library serving an omega.6 held with the wrist turned), the records read on this thread,
+  // for 0.4 s: every heap call of the process is counted
+  const std::string base = testing::TempDir() + "alloc_standin_dhd";
+  std::ofstream(base + ".cfg") << "trace " << base << ".trace\nmax_ticks 4000\n"
+                               << "position 0.01 -0.02 0.006\nrotation 0.2 -0.15 0.4\n";
+  setenv("VIRTMECH_STANDIN_CONFIG", (base + ".cfg").c_str(), 1);
+  drivers::ForceDimensionSettings fd;
+  fd.library = VM_STANDIN_DHD;
+  drivers::ForceDimensionDriver driver(fd);
+  const Scene s = make_scene("Omega6PlanarArm");
+  Controller c(s.device, s.mechanism, cycle_settings());
+  driver.open(*s.device);
+  driver.start(c);
+  std::uint64_t ticks = 0;
+  const HeapCount n = count_running_driver(driver, ticks);
+  const drivers::ServoStats st = driver.servo()->stats();
+  driver.stop();
+  unsetenv("VIRTMECH_STANDIN_CONFIG");
+  EXPECT_GT(ticks, 200u);
+  EXPECT_EQ(st.reason, drivers::StopReason::kNone);
+  EXPECT_GT(st.force_n, 0.0);  // the mechanism is rendered
   EXPECT_EQ(n.allocations, 0);
   EXPECT_EQ(n.frees, 0);
   EXPECT_EQ(n.news, 0);

@@ -51,7 +51,8 @@ TEST(Registry, MistakesNameWhereAndTheParameter) {
   EXPECT_EQ(error_of([&] { make_mechanism(p); }),
             "mechanism.length: expected a number > 0 and <= 10 [m], got -1");
   EXPECT_EQ(error_of([] { make_device(Params("Falcon")); }),
-            "device.type: expected 'PhantomOmni', 'Planar3R' or 'Device', got 'Falcon'");
+            "device.type: expected 'PhantomOmni', 'Planar3R', 'Device' or 'CartesianDevice', got "
+            "'Falcon'");
 }
 
 TEST(Registry, AKindIsRegisteredOnce) {

@@ -1,4 +1,4 @@
-// The cycle's own sine, cosine and atan2 (src/trig.hpp) against long double and the library's.
+// The cycle's own atan2 (src/trig.hpp) against long double and the library's.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -80,92 +80,12 @@ TEST(Arctangent, SpecialValuesAreTheLibrarys) {
   EXPECT_EQ(virtmech::detail::atan2_by_fit(0.0, -1.0), M_PI);
 }
 
-namespace {
-
-// the larger error of sin x and cos x in ulps (an exact zero must be given exactly)
-double sincos_ulps(double x) {
-  double s, c;
-  virtmech::detail::sincos_by_fit(x, s, c);
-  const long double xl = x;
-  const long double es = std::sin(xl), ec = std::cos(xl);
-  const double us = es == 0.0L ? (s == 0.0 ? 0.0 : 1e9) : ulps(s, es);
-  return std::max(us, ulps(c, ec));
-}
-
-struct Worst {
-  double ulps = 0.0, x = 0.0;
-  void see(double at) {
-    const double u = sincos_ulps(at);
-    if (u > ulps) {
-      ulps = u;
-      x = at;
-    }
-  }
-};
-
-}  // namespace
-
-TEST(SineCosine, AreWithinTwoUlpsOfTheExactValues) {
-  std::mt19937_64 rng(12);
-  std::uniform_real_distribution<double> joint(-10.0, 10.0), wide(-2000.0, 2000.0),
-      decades(-300.0, 0.0);
-  Worst worst;
-  for (long i = 0; i < 1000000; ++i) {
-    worst.see(joint(rng));  // joint angles
-    worst.see(wide(rng));   // the reduction's whole range and beyond
-    worst.see(joint(rng) * std::pow(10.0, decades(rng)));  // tiny ones
-  }
-  EXPECT_LE(worst.ulps, 2.0) << "at x = " << worst.x;
-  EXPECT_GT(worst.ulps, 0.5);  // (the test reaches the approximation's error)
-}
-
-TEST(SineCosine, AreWithinTwoUlpsAtTheQuadrantsSeams) {
-  // near k pi/4 and k pi/2 (where the reduction switches and where sin or cos vanishes),
-  // a few ulps either side, for k up to the reduction's end
-  Worst worst;
-  for (int k = -1300; k <= 1300; ++k) {
-    for (const double base : {k * M_PI / 4.0, k * M_PI / 2.0}) {
-      double x = base;
-      for (int i = 0; i < 4; ++i) x = std::nextafter(x, -1e9);
-      for (int i = 0; i < 9; ++i, x = std::nextafter(x, 1e9)) worst.see(x);
-    }
-  }
-  EXPECT_LE(worst.ulps, 2.0) << "at x = " << worst.x;
-}
-
-TEST(SineCosine, SpecialValuesAreTheLibrarys) {
-  const double inf = std::numeric_limits<double>::infinity();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (const double x : {0.0, -0.0, inf, -inf, nan, 1e300, -1e300, 1e3, -1e3, 1e3 + 1e-9}) {
-    double s, c;
-    virtmech::detail::sincos_by_fit(x, s, c);
-    const double es = std::sin(x), ec = std::cos(x);
-    EXPECT_EQ(std::isnan(s), std::isnan(es)) << x;
-    EXPECT_EQ(std::isnan(c), std::isnan(ec)) << x;
-    if (!std::isnan(es)) {
-      EXPECT_EQ(std::signbit(s), std::signbit(es)) << x;
-      EXPECT_LE(std::abs(s - es), 4.5e-16) << x;
-      EXPECT_LE(std::abs(c - ec), 4.5e-16) << x;
-    }
-  }
-}
-
 TEST(CycleTrigonometry, IsTheOwnOrInACoreOnCmathTheLibrarys) {
-  // the cycle's sincos and atan2 forward to one implementation, bit for bit
+  // the cycle's atan2 forwards to one implementation, bit for bit
   std::mt19937_64 rng(13);
   std::uniform_real_distribution<double> wide(-20.0, 20.0);
   for (int i = 0; i < 10000; ++i) {
     const double x = wide(rng), y = wide(rng);
-    double s, c, s_expected, c_expected;
-    virtmech::detail::sincos(x, s, c);
-    if (virtmech::detail::kStdMath) {
-      s_expected = std::sin(x);
-      c_expected = std::cos(x);
-    } else {
-      virtmech::detail::sincos_by_fit(x, s_expected, c_expected);
-    }
-    ASSERT_EQ(s, s_expected) << x;
-    ASSERT_EQ(c, c_expected) << x;
     ASSERT_EQ(virtmech::detail::atan2(y, x), virtmech::detail::kStdMath
                                                  ? std::atan2(y, x)
                                                  : virtmech::detail::atan2_by_fit(y, x))

@@ -1,6 +1,7 @@
-"""The stand-in OpenHaptics library (tests/standin) for the tests of `virtmech drive`: found
-or built with CMake, configured through the file VIRTMECH_STANDIN_CONFIG names, and its trace
-read back (the summary's key-value lines and one row per tick)."""
+"""The stand-in vendor libraries (tests/standin: OpenHaptics HD, Force Dimension DHD) for the
+tests of `virtmech drive`: found or built with CMake, configured through the file
+VIRTMECH_STANDIN_CONFIG names, and their traces read back (the summary's key-value lines and
+one row per tick)."""
 
 from __future__ import annotations
 
@@ -34,11 +35,14 @@ def _cmake(*args: str, cwd: Path = ROOT) -> None:
         )
 
 
-def standin_library() -> Path:
-    """The stand-in libHD.so: $VIRTMECH_STANDIN_HD, else built with CMake (the target
-    virtmech_standin_hd) in build/cpp where scripts/test.sh configured it, else in
+def standin_library(sdk: str = "hd") -> Path:
+    """The stand-in libHD.so (sdk "hd") or libdhd.so (sdk "dhd"): $VIRTMECH_STANDIN_HD (or
+    $VIRTMECH_STANDIN_DHD), else built with CMake (the target virtmech_standin_hd or
+    virtmech_standin_dhd) in build/cpp where scripts/test.sh configured it, else in
     build/standin. A failure to build raises (the tests fail: they are never skipped)."""
-    given = os.environ.get("VIRTMECH_STANDIN_HD")
+    target, file = {"hd": ("virtmech_standin_hd", "libHD.so"),
+                    "dhd": ("virtmech_standin_dhd", "libdhd.so")}[sdk]
+    given = os.environ.get(f"VIRTMECH_STANDIN_{sdk.upper()}")
     if given:
         return Path(given)
     (ROOT / "build").mkdir(exist_ok=True)
@@ -59,8 +63,8 @@ def standin_library() -> Path:
                     "-DVIRTMECH_BUILD_STANDIN=ON",
                     f"-DPython_EXECUTABLE={sys.executable}",
                 )
-        _cmake("--build", str(build), "--target", "virtmech_standin_hd", "-j", "2")
-    lib = build / "tests" / "standin" / "libHD.so"
+        _cmake("--build", str(build), "--target", target, "-j", "2")
+    lib = build / "tests" / "standin" / file
     if not lib.exists():
         raise RuntimeError(f"the stand-in HD library was not built: {lib}")
     return lib
@@ -136,15 +140,18 @@ def velocity_estimate(q: np.ndarray, period_s: float, cutoff_hz: float) -> np.nd
     return dq
 
 
-#: the stand-in's truth rows in mode mujoco (standin_hd.cpp: LogLayout of n = 6 joints)
-TRUTH_COLUMNS = (
-    ["t"]
-    + [f"q{i}" for i in range(6)]
-    + [f"dq{i}" for i in range(6)]
-    + ["px", "py", "pz", "sx", "sy", "sz", "vx", "vy", "vz", "wx", "wy", "wz"]
-    + [f"tau_motor{i}" for i in range(6)]
-    + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz", "ax", "ay", "az", "segment"]
-)
+def truth_columns(n: int = 6) -> list[str]:
+    """The stand-in's truth rows in mode mujoco for a device of n joints (standin_sim.hpp,
+    truth_layout)."""
+    return (
+        ["t"]
+        + [f"q{i}" for i in range(n)]
+        + [f"dq{i}" for i in range(n)]
+        + ["px", "py", "pz", "sx", "sy", "sz", "vx", "vy", "vz", "wx", "wy", "wz"]
+        + [f"tau_motor{i}" for i in range(n)]
+        + ["fhx", "fhy", "fhz", "mhx", "mhy", "mhz", "ax", "ay", "az", "segment"]
+    )
+
 
 
 def mujoco_config(folder: Path, scenario, reference) -> dict:
@@ -178,11 +185,14 @@ def mujoco_config(folder: Path, scenario, reference) -> dict:
     order = "columns anchor_p anchor_R anchor_v anchor_w k_t b_t k_r b_r force moment"
     order = (order + " force_in_handle hand_attached segment").split()
     p = scenario.data["device"]
+    if p["type"] == "CartesianDevice":  # the DHD stand-in's device
+        kind = {"device_model": p["model"], "handle_rotation": np.asarray(device.handle_rotation)}
+    else:
+        kind = {"l1": p["l1"], "l2": p["l2"]}
     return {
         "mode": "mujoco",
         "model": folder / "model.mjb",
-        "l1": p["l1"],
-        "l2": p["l2"],
+        **kind,
         "coupling_inv": np.asarray(cp.Cinv, dtype=float),
         "coupling_offset": np.asarray(cp.c0, dtype=float),
         "actuated": [int(i) for i in np.flatnonzero(device.actuated)],
@@ -204,7 +214,8 @@ def mujoco_config(folder: Path, scenario, reference) -> dict:
     }
 
 
-def truth(folder: Path) -> np.ndarray:
-    """The stand-in's simulated device, one row per control cycle (TRUTH_COLUMNS)."""
+def truth(folder: Path, n: int = 6) -> np.ndarray:
+    """The stand-in's simulated device of n joints, one row per control cycle
+    (truth_columns(n))."""
     data = np.fromfile(folder / "truth.bin", dtype=np.float64)
-    return data.reshape(-1, len(TRUTH_COLUMNS))
+    return data.reshape(-1, len(truth_columns(n)))

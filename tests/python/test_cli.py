@@ -49,10 +49,12 @@ def test_scenarios_are_listed_aligned_in_the_papers_figure_order(capsys):
     lines = capsys.readouterr().out.splitlines()
     names = [ln.split()[0] for ln in lines]
     assert sorted(names) == sorted(p.stem for p in sc.DATA.glob("*.toml"))
-    assert names[:5] == ["omni-fig9", "omni-fig10", "omni-fig11", "omni-fig11-passive",
-                         "omni-fig12"]
-    assert names[5:9] == [f"planar3r-fig{k}" for k in (9, 10, 11, 12)]
-    others = names[9:]
+    # each device's figures together, in the paper's order, the devices alphabetically
+    assert names[:4] == [f"omega6-fig{k}" for k in (9, 10, 11, 12)]
+    assert names[4:9] == ["omni-fig9", "omni-fig10", "omni-fig11", "omni-fig11-passive",
+                          "omni-fig12"]
+    assert names[9:13] == [f"planar3r-fig{k}" for k in (9, 10, 11, 12)]
+    others = names[13:]
     assert others == sorted(others) and "arm7-contact" in others
     # the durations stand in one column, however long the name
     ends = {re.search(r"\d\.\d s ", ln).end() for ln in lines}

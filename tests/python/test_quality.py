@@ -121,6 +121,32 @@ def test_fidelity_tells_where_eq_26_wins_and_where_it_does_not():
     assert resist["eq. 26"]["relative_rms_error"] > resist["eq. 11"]["relative_rms_error"]
 
 
+def test_the_fully_actuated_variant_of_an_omega6_is_the_sigma7():
+    assert Q.fully_actuated_variant({"type": "CartesianDevice", "model": "omega.6"}) == {
+        "model": "sigma.7"
+    }
+    assert Q.fully_actuated_variant({"type": "CartesianDevice", "model": "omega.7"}) == {
+        "model": "sigma.7"
+    }
+    for model in ("sigma.7", "falcon", "omega.3"):  # driven where sensed already
+        assert Q.fully_actuated_variant({"type": "CartesianDevice", "model": model}) is None
+    assert Q.fully_actuated_variant({"type": "PhantomOmni"}) == {"actuated": [True] * 6}
+
+
+def test_an_omega6_renders_its_stiffness_and_its_fidelity_against_a_sigma7():
+    # the omega.6 of the Fig. 11 circle: stiff across the circle; and the Fig. 12 twist,
+    # which a sigma.7 resists with a moment the omega.6 cannot give: eq. 26 pushes the
+    # handle sideways instead, harder than the sigma.7's force (as on the Omni)
+    s = Q.Setup("omega6-fig11")
+    st = Q.stiffness(s, rest=s.start())
+    assert st["radial"]["stiffness_n_per_m"] >= 0.8 * 500.0
+    resist = Q.fidelity(Q.Setup("omega6-fig12"))
+    assert set(resist) == {"fully actuated", *Q.LAWS}
+    assert resist["fully actuated"]["force_rms_n"] > 0.1
+    assert resist["eq. 26"]["force_rms_n"] > resist["fully actuated"]["force_rms_n"]
+    assert resist["eq. 11"]["relative_rms_error"] < resist["eq. 26"]["relative_rms_error"]
+
+
 def test_the_limit_cycle_measure_is_the_ac_rms_of_the_force():
     t = np.arange(0, 2.0, 1e-3)
     f = np.zeros((len(t), 3))

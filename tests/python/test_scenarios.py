@@ -8,8 +8,10 @@ import pytest
 import virtmech.scenarios as sc
 
 PAPER = [f"{d}-fig{n}" for d in ("omni", "planar3r") for n in (9, 10, 11, 12)]
+OMEGA6 = [f"omega6-fig{n}" for n in (9, 10, 11, 12)]
 SHAPES = ["omni-surface-nurbs", "omni-surface-sphere", "omni-letter", "omni-trocar", "omni-snap"]
-SHIPPED = [*PAPER, "omni-fig11-passive", "omni-contact", "arm7-contact", *SHAPES]
+SHIPPED = [*PAPER, *OMEGA6, "omni-fig11-passive", "omni-contact", "arm7-contact",
+           "falcon-contact", *SHAPES]
 
 GOOD = """
 name = "t"
@@ -38,6 +40,23 @@ def test_the_papers_figures_ship_on_both_devices():
         assert s["mechanism"]["normal"] == [0.0, 0.0, 1.0]  # the x-y plane, z held
     assert sc.load("omni-fig9")["controller"]["law"] == "null_space"
     assert sc.load("omni-fig10")["controller"]["law"] == "auto"
+
+
+def test_the_papers_figures_ship_on_a_simulated_omega6_as_on_the_omni():
+    # the same figures on the Cartesian device: the same law, gains, start, hand and checks,
+    # the circle in the plane the wrist's first axis turns (the SDK's y-z plane)
+    for name in OMEGA6:
+        s, omni = sc.load(name), sc.load(name.replace("omega6", "omni"))
+        assert s["device"]["type"] == "CartesianDevice" and s["device"]["model"] == "omega.6"
+        assert s["mechanism"]["type"] == "PlanarArm"
+        assert s["mechanism"]["normal"] == [1.0, 0.0, 0.0]
+        assert s["mechanism"]["length"] == omni["mechanism"]["length"]
+        for key in ("law", "passivity", "kp", "ramp_time_s"):
+            assert s["controller"][key] == omni["controller"][key], (name, key)
+        assert s["initial"]["theta"] == omni["initial"]["theta"]
+        assert s["human"] == omni["human"] and s["intent"] == omni["intent"]
+        assert s["checks"] == omni["checks"]
+    assert sc.load("falcon-contact")["device"]["model"] == "falcon"
 
 
 def test_defaults_are_filled_in():
@@ -85,7 +104,7 @@ def test_wrong_type_names_key_value_and_expectation():
     msg = _error(GOOD.replace('type = "PhantomOmni"', 'type = "Falcon"'))
     assert (
         "device.type: value 'Falcon' is not allowed; expected one of "
-        "'PhantomOmni', 'Planar3R', 'Device'"
+        "'PhantomOmni', 'Planar3R', 'Device', 'CartesianDevice'"
         in msg
     )
 

@@ -1,6 +1,7 @@
-"""Unilateral contact in simulation (scenario omni-contact): the Omni lowers a probe onto a
-plane, presses, slides and lifts off. Contact is made once and broken once, the plane
-pushes with Kp times the tip's depth, and nothing acts while the tip is in front of it."""
+"""Unilateral contact in simulation (scenarios omni-contact and falcon-contact): the Omni, and
+a Novint Falcon (three slides, its handle's orientation fixed), lower a probe onto a plane,
+press, slide and lift off. Contact is made once and broken once, the plane pushes with Kp
+times the tip's depth, and nothing acts while the tip is in front of it."""
 
 from __future__ import annotations
 
@@ -12,12 +13,23 @@ import virtmech.scenarios as sc
 
 sim = pytest.importorskip("virtmech.sim")
 
-KP = vm.PhantomOmni().stiffness  # [N/m] the Omni's default stiffness
+#: each scenario's plane normal (a world axis), the axes along the plane and the slide's
+CASES = {
+    "omni-contact": {"normal": 1, "along": [0, 2], "slide": "px"},
+    "falcon-contact": {"normal": 2, "along": [0, 1], "slide": "py"},
+}
 
 
-@pytest.fixture(scope="module")
-def contact_run():
-    return sim.run("omni-contact")
+def stiffness(scenario) -> float:
+    """The device's default Kp [N/m] (the scenarios leave it)."""
+    from virtmech.builder import make_device
+
+    return make_device(scenario.data["device"]).stiffness
+
+
+@pytest.fixture(scope="module", params=sorted(CASES))
+def contact_run(request):
+    return request.param, sim.run(request.param)
 
 
 def tip_height(run, scenario) -> np.ndarray:
@@ -30,6 +42,7 @@ def tip_height(run, scenario) -> np.ndarray:
 
 
 def test_contact_is_made_once_and_broken_once(contact_run):
+    _, contact_run = contact_run
     f = contact_run.cols("fx", "fy", "fz")
     touching = np.linalg.norm(f, axis=1) > 1e-9
     assert np.count_nonzero(np.diff(touching.astype(int))) == 2  # no chatter at the boundary
@@ -39,7 +52,8 @@ def test_contact_is_made_once_and_broken_once(contact_run):
 
 
 def test_no_force_while_the_tip_is_in_front_of_the_plane(contact_run):
-    scenario = sc.load("omni-contact")
+    name, contact_run = contact_run
+    scenario = sc.load(name)
     h = tip_height(contact_run, scenario)
     lifted = h > 1e-4  # 0.1 mm: beyond the encoders' resolution at the tip
     assert lifted.sum() > 1500
@@ -49,20 +63,22 @@ def test_no_force_while_the_tip_is_in_front_of_the_plane(contact_run):
 
 
 def test_the_plane_pushes_with_kp_times_depth_and_lets_the_tip_slide(contact_run):
-    scenario = sc.load("omni-contact")
+    name, contact_run = contact_run
+    scenario, case = sc.load(name), CASES[name]
+    kp = stiffness(scenario)
     h = tip_height(contact_run, scenario)
     t = contact_run.t
     f = contact_run.cols("fx", "fy", "fz")
-    pressed = (t > 1.2) & (t < 2.8)  # pressing, then sliding 30 mm along x
+    pressed = (t > 1.2) & (t < 2.8)  # pressing, then sliding 30 mm along the plane
     depth = -h[pressed]
     assert depth.min() > 1e-3  # pressed in by more than a millimetre throughout
-    # along the normal (+y): Kp x depth, within the damping and the encoders' quantisation
-    # (about one encoder count at the tip, 0.055 mm, times Kp)
-    assert np.abs(f[pressed, 1] - KP * depth).max() < KP * 0.06e-3
+    # along the normal: Kp x depth, within the damping and the encoders' quantisation
+    # (about one encoder count at the tip, 0.055 mm on the Omni, times Kp)
+    assert np.abs(f[pressed, case["normal"]] - kp * depth).max() < kp * 0.06e-3
     # no friction: nothing along the plane while the tip slides
-    assert np.abs(f[pressed][:, [0, 2]]).max() < 1e-6
-    px = contact_run.col("px")
-    assert px[t > 2.8][0] - px[t > 1.8][0] > 0.025
+    assert np.abs(f[pressed][:, case["along"]]).max() < 1e-6
+    slide = contact_run.col(case["slide"])
+    assert slide[t > 2.8][0] - slide[t > 1.8][0] > 0.025
     status = contact_run.col("status").astype(int)
     # nothing but the initial ramp-in and, as the spring gives back what it stored while the
     # tip lifts off, the passivity controller

@@ -51,6 +51,9 @@ DEVICES = {
     ),
     "planar3r": lambda: vm.Planar3R(link1=0.25, link2=0.15, base=_base()),
     "arm7": _arm7,
+    "omega6": lambda: vm.CartesianDevice("omega.6"),
+    "sigma7": lambda: vm.CartesianDevice("sigma.7", handle_rotation=[0.4, 2.0, -0.3]),
+    "falcon": lambda: vm.CartesianDevice("falcon"),
 }
 
 

@@ -1,6 +1,6 @@
 """src/trig.hpp's coefficients and constants are those scripts/trig_fits.py computes: the
-fits regenerated with mpmath and compared, double for double, with the header's polynomials
-(read from its C++ as polynomials in z) and its reduction constants."""
+fit regenerated with mpmath and compared, double for double, with the header's polynomial
+(read from its C++ as a polynomial in z) and atan2's reduction constants."""
 
 import importlib.util
 import re
@@ -68,19 +68,7 @@ def test_atan_series_is_the_fit(fits):
     assert err < 1e-17  # (the fit the header documents: its error, times z, below 1e-18)
 
 
-def test_sine_and_cosine_polynomials_are_the_fits(fits):
-    exprs = statements(body("sincos_by_fit"))
-    assert coefficients(polynomial(exprs, ["z2", "z4", "S"])) == fits.sin_fit()[0]
-    assert coefficients(polynomial(exprs, ["z2", "z4", "C"])) == fits.cos_fit()[0]
-
-
 def test_reduction_constants_are_the_scripts(fits):
-    sincos = " ".join(body("sincos_by_fit").split())
-    two_over_pi = float(re.search(r"x \* ([0-9.e+-]+) \+ kShift", sincos).group(1))
-    assert two_over_pi == fits.two_over_pi()
-    parts = re.search(r"\(x - k \* ([0-9.e+-]+)\) - k \* ([0-9.e+-]+)\) - k \* ([0-9.e+-]+)",
-                      sincos).groups()
-    assert [float(p) for p in parts] == fits.half_pi_parts()
     atan2 = " ".join(body("atan2_by_fit").split())
 
     def table(name):

@@ -34,11 +34,7 @@
 //   stall_at TICK                    from that tick on no callback runs
 //   max_ticks N                      ticks traced (default 120000: 2 min)
 //   replay_file PATH  replay_rows N  (float64, N x 6: joints then gimbal [rad])
-//   mujoco: model PATH (.mjb or .xml)  l1 M  l2 M  coupling_inv 36  coupling_offset 6
-//           actuated I...  substeps N  period_s S  comp_bodies I...  comp_masses KG...
-//           gravity 3  quantum RAD  delay_cycles N  velocity_alpha A  hand_body I
-//           qpos0 6  plan_file PATH  plan_rows N  plan_layout 14 (PlanLayout's fields in order)
-//           truth_file PATH  (float64 rows, LogLayout below: the simulated device's state)
+//   mujoco: l1 M  l2 M, and the simulated device's keys (standin_sim.hpp)
 //           hold_until_servo 0|1  (default 1: no cycle runs before a callback is scheduled,
 //           so that the simulated session starts with the driver's servo)
 #include <pthread.h>
@@ -62,10 +58,11 @@
 #include <thread>
 #include <vector>
 
+#include "standin_config.hpp"
 #include "virtmech/drivers/hd_api.h"
 
 #if VM_STANDIN_MUJOCO
-#include "virtmech/sim/servo_loop.hpp"
+#include "standin_sim.hpp"
 #endif
 
 #define VM_STANDIN_EXPORT extern "C" __attribute__((visibility("default")))
@@ -80,76 +77,12 @@ namespace {
 constexpr int kJoints = 6;
 constexpr HHD kHandle = 0;
 
-// --- configuration -----------------------------------------------------------------------
+// --- configuration: standin_config.hpp ----------------------------------------------------
 
-class Config {
- public:
-  void load() {
-    const char* path = std::getenv("VIRTMECH_STANDIN_CONFIG");
-    if (path == nullptr || path[0] == '\0') return;
-    std::ifstream in(path);
-    if (!in) {
-      std::fprintf(stderr, "standin libHD: cannot read %s\n", path);
-      return;
-    }
-    std::string line;
-    while (std::getline(in, line)) {
-      const auto hash = line.find('#');
-      if (hash != std::string::npos) line.erase(hash);
-      std::istringstream words(line);
-      std::string key;
-      if (!(words >> key)) continue;
-      std::vector<std::string> values;
-      for (std::string v; words >> v;) values.push_back(v);
-      values_[key] = values;
-    }
-  }
-  bool has(const std::string& key) const { return values_.count(key) > 0; }
-  std::string text(const std::string& key, const std::string& fallback) const {
-    auto it = values_.find(key);
-    if (it == values_.end() || it->second.empty()) return fallback;
-    std::string out;
-    for (const auto& w : it->second) out += (out.empty() ? "" : " ") + w;
-    return out;
-  }
-  double number(const std::string& key, double fallback, size_t i = 0) const {
-    auto it = values_.find(key);
-    if (it == values_.end() || it->second.size() <= i) return fallback;
-    return std::strtod(it->second[i].c_str(), nullptr);
-  }
-  long integer(const std::string& key, long fallback, size_t i = 0) const {
-    auto it = values_.find(key);
-    if (it == values_.end() || it->second.size() <= i) return fallback;
-    return std::strtol(it->second[i].c_str(), nullptr, 0);
-  }
-  std::vector<double> numbers(const std::string& key) const {
-    std::vector<double> out;
-    auto it = values_.find(key);
-    if (it != values_.end()) {
-      for (const auto& w : it->second) out.push_back(std::strtod(w.c_str(), nullptr));
-    }
-    return out;
-  }
-  std::vector<std::string> words(const std::string& key) const {
-    auto it = values_.find(key);
-    return it == values_.end() ? std::vector<std::string>{} : it->second;
-  }
-
- private:
-  std::map<std::string, std::vector<std::string>> values_;
-};
+using standin_config::Config;
 
 std::vector<double> read_doubles(const std::string& path, size_t count) {
-  std::vector<double> out(count, 0.0);
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (f == nullptr) {
-    std::fprintf(stderr, "standin libHD: cannot read %s\n", path.c_str());
-    return {};
-  }
-  const size_t got = std::fread(out.data(), sizeof(double), count, f);
-  std::fclose(f);
-  out.resize(got);
-  return out;
+  return standin_config::read_doubles(path, count, "standin libHD");
 }
 
 // --- the tick's trace ----------------------------------------------------------------------
@@ -311,16 +244,9 @@ class Standin {
    private:
     Standin& s_;
   };
-  mjModel* model_ = nullptr;
-  mjData* data_ = nullptr;
   std::unique_ptr<virtmech::PhantomOmni> omni_;
   std::unique_ptr<Serve> serve_;
-  std::unique_ptr<virtmech::sim::ServoLoop> loop_;
-  std::vector<double> plan_, truth_;
-  int plan_columns_ = 0, truth_columns_ = 0;
-  long plan_rows_ = 0;
-  double noise_[kJoints] = {0, 0, 0, 0, 0, 0};
-  long cycle_ = 0;                // the simulation's control cycles run
+  standin_sim::SimulatedDevice sim_;
   bool hold_until_servo_ = true;  // no cycle runs before a callback is scheduled
 #endif
 };
@@ -432,102 +358,18 @@ void Standin::disable(HHD h) {
 
 #if VM_STANDIN_MUJOCO
 bool Standin::load_mujoco() {
-  const std::string path = config.text("model", "");
-  char error[1000] = "";
-  const bool xml = path.size() > 4 && path.substr(path.size() - 4) == ".xml";
-  model_ = xml ? mj_loadXML(path.c_str(), nullptr, error, sizeof error)
-               : mj_loadModel(path.c_str(), nullptr);
-  if (model_ == nullptr) {
-    std::fprintf(stderr, "standin libHD: cannot load the model %s %s\n", path.c_str(), error);
-    return false;
-  }
-  data_ = mj_makeData(model_);
-  const std::vector<double> qpos0 = config.numbers("qpos0");
-  for (int i = 0; i < model_->nq && i < static_cast<int>(qpos0.size()); ++i) {
-    data_->qpos[i] = qpos0[static_cast<size_t>(i)];
-  }
-  mj_forward(model_, data_);
   virtmech::PhantomOmniParams p;
   p.l1 = config.number("l1", p.l1);
   p.l2 = config.number("l2", p.l2);
   omni_ = std::make_unique<virtmech::PhantomOmni>(p);
-  virtmech::sim::LoopSettings s;
-  const std::vector<double> cinv = config.numbers("coupling_inv"),
-                            c0 = config.numbers("coupling_offset");
-  s.coupling_inv = Eigen::MatrixXd::Identity(kJoints, kJoints);
-  s.coupling_offset = Eigen::VectorXd::Zero(kJoints);
-  for (size_t i = 0; i < cinv.size() && i < 36; ++i) s.coupling_inv(i / 6, i % 6) = cinv[i];
-  for (size_t i = 0; i < c0.size() && i < 6; ++i) s.coupling_offset[static_cast<long>(i)] = c0[i];
-  for (double a : config.numbers("actuated")) s.actuated.push_back(static_cast<int>(a));
-  s.substeps = static_cast<int>(config.integer("substeps", 1));
-  s.period_s = config.number("period_s", 1e-3);
-  for (double b : config.numbers("comp_bodies")) s.comp_bodies.push_back(static_cast<int>(b));
-  s.comp_masses = config.numbers("comp_masses");
-  const std::vector<double> g = config.numbers("gravity");
-  for (size_t i = 0; i < g.size() && i < 3; ++i) s.gravity[static_cast<long>(i)] = g[i];
-  s.quantum = config.number("quantum", 0.0);
-  s.delay_cycles = static_cast<int>(config.integer("delay_cycles", 0));
-  s.velocity_alpha = config.number("velocity_alpha", 1.0);
-  s.hand_body = static_cast<int>(config.integer("hand_body", -1));
-  virtmech::sim::PlanLayout plan;
-  int* const fields[] = {&plan.columns, &plan.anchor_p, &plan.anchor_R, &plan.anchor_v,
-                         &plan.anchor_w, &plan.k_t, &plan.b_t, &plan.k_r, &plan.b_r,
-                         &plan.force, &plan.moment, &plan.force_in_handle,
-                         &plan.hand_attached, &plan.segment};
-  const std::vector<double> layout = config.numbers("plan_layout");
-  for (size_t i = 0; i < layout.size() && i < 14; ++i) *fields[i] = static_cast<int>(layout[i]);
-  plan_columns_ = plan.columns;
-  plan_rows_ = config.integer("plan_rows", 0);
-  plan_ = read_doubles(config.text("plan_file", ""),
-                       static_cast<size_t>(plan_rows_) * static_cast<size_t>(plan_columns_));
-  if (plan_columns_ <= 0 || plan_rows_ <= 0 ||
-      plan_.size() != static_cast<size_t>(plan_rows_ * plan_columns_)) {
-    std::fprintf(stderr, "standin libHD: the hand's plan is missing or short\n");
-    return false;
-  }
-  // the truth: t, q, dq, handle_p, stylus, twist, tau_motor, hand_wrench, anchor, segment
-  virtmech::sim::LogLayout log;
-  const int n = kJoints;
-  log.t = 0;
-  log.q = 1;
-  log.dq = 1 + n;
-  log.handle_p = 1 + 2 * n;
-  log.stylus = 4 + 2 * n;
-  log.twist = 7 + 2 * n;
-  log.tau_motor = 13 + 2 * n;
-  log.hand_wrench = 13 + 3 * n;
-  log.anchor = 19 + 3 * n;
-  log.segment = 22 + 3 * n;
-  log.columns = truth_columns_ = 23 + 3 * n;
-  truth_.assign(static_cast<size_t>(max_ticks_) * static_cast<size_t>(truth_columns_), 0.0);
-  cycle_ = 0;
-  hold_until_servo_ = config.integer("hold_until_servo", 1) != 0;
-  // before the first cycle the encoders read the start pose (the loop's first sensing)
-  for (int i = 0; i < kJoints; ++i) {
-    double v = 0.0;
-    for (int j = 0; j < kJoints; ++j) {
-      v += s.coupling_inv(i, j) * (data_->qpos[j] - s.coupling_offset[j]);
-    }
-    q_[i] = s.quantum > 0.0 ? std::nearbyint(v / s.quantum) * s.quantum : v;
-  }
   serve_ = std::make_unique<Serve>(*this);
-  try {
-    loop_ = std::make_unique<virtmech::sim::ServoLoop>(*omni_, *serve_, model_, data_, s, plan,
-                                                       log);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "standin libHD: %s\n", e.what());
-    return false;
-  }
+  if (!sim_.load(config, *omni_, *serve_, max_ticks_, "standin libHD")) return false;
+  hold_until_servo_ = config.integer("hold_until_servo", 1) != 0;
+  sim_.sensed(q_);  // before the first cycle the encoders read the start pose
   return true;
 }
 
-void Standin::free_mujoco() {
-  loop_.reset();
-  if (data_) mj_deleteData(data_);
-  if (model_) mj_deleteModel(model_);
-  data_ = nullptr;
-  model_ = nullptr;
-}
+void Standin::free_mujoco() { sim_.unload(); }
 #endif
 
 // --- frames --------------------------------------------------------------------------------
@@ -823,7 +665,7 @@ void Standin::tick(long k, double gap_s) {
     serve(&replay_[r * kJoints]);
     run_callbacks();
 #if VM_STANDIN_MUJOCO
-  } else if (loop_) {
+  } else if (sim_.loaded()) {
     bool servo = true;
     if (hold_until_servo_) {
       std::lock_guard<std::mutex> lock(callbacks_mutex_);
@@ -832,12 +674,7 @@ void Standin::tick(long k, double gap_s) {
     if (!servo) {  // the simulated session starts with the servo: until then it holds still
       run_callbacks();
     } else {
-      const long c = cycle_++;
-      const long r = std::min(c, plan_rows_ - 1);
-      const double dropout = 0.0;
-      double* truth = c < max_ticks_ ? &truth_[static_cast<size_t>(c * truth_columns_)]
-                                     : &truth_[0];  // past the trace: overwritten
-      loop_->run(c, 1, &plan_[static_cast<size_t>(r * plan_columns_)], noise_, &dropout, truth);
+      sim_.cycle();
     }
 #endif
   } else {  // the synthetic motion of the old example: waist and shoulder swinging
@@ -918,15 +755,7 @@ void Standin::write_trace() {
     std::fclose(t);
   }
 #if VM_STANDIN_MUJOCO
-  const std::string truth = config.text("truth_file", "");
-  if (loop_ && !truth.empty()) {
-    if (std::FILE* t = std::fopen(truth.c_str(), "wb")) {
-      const long cycles = std::min(cycle_, max_ticks_);
-      std::fwrite(truth_.data(), sizeof(double),
-                  static_cast<size_t>(cycles) * static_cast<size_t>(truth_columns_), t);
-      std::fclose(t);
-    }
-  }
+  sim_.write_truth(config.text("truth_file", ""));
 #endif
 }
 

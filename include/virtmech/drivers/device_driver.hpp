@@ -125,6 +125,10 @@ class DeviceDriver {
   /// The tick's device write: joint torques tau (dof() entries [N·m, N]) to the motors the
   /// device has; returns the vendor's error code, 0 for none.
   virtual std::uint32_t write_torques(const double* tau) noexcept = 0;
+  /// The joint velocities the device served with this tick's read_joints (dof() entries
+  /// [rad/s, m/s]), used instead of the servo's estimate; nullptr (the default): the device
+  /// serves none.
+  virtual const double* read_velocities() const noexcept { return nullptr; }
 
  private:
   template <typename Renderer>

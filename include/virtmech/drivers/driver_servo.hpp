@@ -130,8 +130,11 @@ class DriverServo {
 
   /// The tick, first half: q the joint readings (dof() entries), t_s the tick's time stamp
   /// [s] on the caller's clock (the renderer's watchdog compares consecutive ones), tau the
-  /// torque to command (dof() entries) [N·m or N]. Returns the tick's driver flags.
-  std::uint32_t tick(const double* q, double t_s, double* tau) noexcept;
+  /// torque to command (dof() entries) [N·m or N]; dq the device's own velocity readings
+  /// (dof() entries [rad/s or m/s]) where it serves them, used instead of the filter's
+  /// estimate while finite (nullptr: the estimate). Returns the tick's driver flags.
+  std::uint32_t tick(const double* q, double t_s, double* tau,
+                     const double* dq = nullptr) noexcept;
   /// The tick, second half: the device's error code after its write (0: none; an error ends
   /// the run, zero torque from the next tick on) and the whole tick's time [µs], device read
   /// and write included (NaN: the first half's own, velocity estimate to record). Publishes
@@ -162,8 +165,17 @@ class DriverServo {
  private:
   void init();
   void stop_for(StopReason reason) noexcept;
-  void fill(TickRecord& r, const double* q, double t_s, double gap, std::uint32_t flags,
-            double step_us, const double* tau, bool stepped) const noexcept;
+  void fill(TickRecord& r, const double* q, const double* dq, double t_s, double gap,
+            std::uint32_t flags, double step_us, const double* tau, bool stepped) const noexcept;
+  // the stages of tick(), in order
+  void claim_record() noexcept;
+  std::uint32_t clock_in(double t_s, double& gap) noexcept;
+  std::uint32_t render(const double* q, double t_s, const double* dq_device, double* tau,
+                       std::uint32_t flags, double& step_us, const double*& dq_served) noexcept;
+  std::uint32_t hold_faults(std::uint32_t status, double t_s) noexcept;
+  void record(const double* q, const double* dq_served, double t_s, double gap,
+              std::uint32_t flags, double step_us, const double* tau, bool stepped,
+              std::uint64_t entered) noexcept;
 
   Controller* ctrl_ = nullptr;  // one of the two
   MechanismSet* set_ = nullptr;

@@ -57,6 +57,10 @@ class OpenHapticsDriver final : public DeviceDriver {
   void start_scheduler();
   /// The next error on HD's stack as a DriverError of `kind` naming `call`, if there is one.
   void throw_on_error(const char* call, DriverError::Kind kind);
+  // the stages of open_device(), in order
+  void init_device(DeviceInfo& info);
+  void identify(DeviceInfo& info);
+  void check_against(const Device& model, const DeviceInfo& info);
 
   OpenHapticsSettings settings_;
   vm_hd_api hd_{};

@@ -335,6 +335,82 @@ class Stepper:
         self.wall_s = time.perf_counter() - wall0
 
 
+def _serve(rig, device: SimDevice, ros_args: list[str], command: str, velocity: bool,
+           lockstep: bool, timeout_s: float, wait_s: float):
+    """The ROS 2 side of a run: the node up, the rendering node awaited (up to `wait_s`), the
+    device stepped to its end. (node, stepper, how the spin ended), or None when a signal
+    ended the wait."""
+    with Session("ros2-sim", ros_args) as session:
+        node = SimNode(session, rig, device, command, velocity, lockstep)
+        executor = session.executor(node.node)
+        # the rendering node first: the run starts once the command topic has a publisher
+        how = session.spin(
+            executor, wait_s, done=lambda: node.node.count_publishers(node.sub.topic_name) > 0
+        )
+        if how == "signal":
+            node.node.destroy_node()
+            return None
+        if how == "duration" and wait_s > 0:
+            node.logger.warning(
+                f"no publisher on {node.sub.topic_name} after {wait_s:g} s: the device runs "
+                "with zero torque until commands come"
+            )
+        stepper = Stepper(node, lockstep, timeout_s)
+        stepper.start()
+        try:
+            how = session.spin(executor, None, done=lambda: not stepper.thread.is_alive())
+        finally:
+            stepper.stop.set()
+            stepper.thread.join()
+            executor.shutdown()
+            node.node.destroy_node()
+    if stepper.error is not None:
+        raise stepper.error
+    return node, stepper, how
+
+
+def _ros_figures(node: SimNode, stepper: Stepper, device: SimDevice, command: str,
+                 lockstep: bool) -> dict:
+    """The run's ROS 2 figures (run.json's "ros2_sim")."""
+    rt = node.ex.round_trips
+    return {
+        "command": command,
+        "lockstep": lockstep,
+        "cycles": device.k,
+        "commands_received": node.ex.received,
+        "commands_rejected": node.rejected,
+        "commands_ignored": node.ex.ignored,
+        "joint_states_resent": node.resent,
+        "lockstep_missed": stepper.missed,
+        "realtime_behind": stepper.behind,
+        "round_trip_median_ms": _percentile_ms(rt, 50),
+        "round_trip_p99_ms": _percentile_ms(rt, 99),
+        "round_trip_count": len(rt),
+        "wall_time_s": stepper.wall_s,
+    }
+
+
+def _summary(name: str, node: SimNode, stepper: Stepper, ros: dict, m: dict, out,
+             how: str) -> str:
+    """The line printed at the end of a run."""
+    lockstep = ros["lockstep"]
+    return (
+        f"virtmech ros2-sim: {name}: {ros['cycles']} cycles in {stepper.wall_s:.2f} s "
+        f"wall ({'lockstep' if lockstep else 'real time'}, commands on {ros['command']}: "
+        f"{node.ex.received} received, {node.rejected} rejected"
+        + (
+            f", {node.ex.ignored} ignored, {stepper.missed} missed, {node.resent} joint states "
+            "sent again"
+            if lockstep
+            else f", {stepper.behind} cycles behind"
+        )
+        + f"); round trip median {ros['round_trip_median_ms']:.3f} ms, p99 "
+        f"{ros['round_trip_p99_ms']:.3f} ms; dist max {m['dist_max_m'] * 1e3:.3f} mm"
+        + (f"; wrote {out}/log.csv, run.json" if out is not None else "")
+        + (f"; ended by {how}" if how == "signal" else "")
+    )
+
+
 def run(
     scenario,
     ros_args: list[str],
@@ -355,65 +431,14 @@ def run(
     rig = build(scenario, seed)
     duration = rig.scenario.duration_s if duration_s is None else duration_s
     device = SimDevice(rig, duration)
-    with Session("ros2-sim", ros_args) as session:
-        node = SimNode(session, rig, device, command, velocity, lockstep)
-        executor = session.executor(node.node)
-        # the rendering node first: the run starts once the command topic has a publisher
-        how = session.spin(
-            executor, wait_s, done=lambda: node.node.count_publishers(node.sub.topic_name) > 0
-        )
-        if how == "signal":
-            node.node.destroy_node()
-            return 0
-        if how == "duration" and wait_s > 0:
-            node.logger.warning(
-                f"no publisher on {node.sub.topic_name} after {wait_s:g} s: the device runs "
-                "with zero torque until commands come"
-            )
-        stepper = Stepper(node, lockstep, timeout_s)
-        stepper.start()
-        try:
-            how = session.spin(executor, None, done=lambda: not stepper.thread.is_alive())
-        finally:
-            stepper.stop.set()
-            stepper.thread.join()
-            executor.shutdown()
-            node.node.destroy_node()
-    if stepper.error is not None:
-        raise stepper.error
-    rt = node.ex.round_trips
-    ros = {
-        "command": command,
-        "lockstep": lockstep,
-        "cycles": device.k,
-        "commands_received": node.ex.received,
-        "commands_rejected": node.rejected,
-        "commands_ignored": node.ex.ignored,
-        "joint_states_resent": node.resent,
-        "lockstep_missed": stepper.missed,
-        "realtime_behind": stepper.behind,
-        "round_trip_median_ms": _percentile_ms(rt, 50),
-        "round_trip_p99_ms": _percentile_ms(rt, 99),
-        "round_trip_count": len(rt),
-        "wall_time_s": stepper.wall_s,
-    }
+    served = _serve(rig, device, ros_args, command, velocity, lockstep, timeout_s, wait_s)
+    if served is None:
+        return 0
+    node, stepper, how = served
+    ros = _ros_figures(node, stepper, device, command, lockstep)
     result = device.result(stepper.wall_s, {"ros2_sim": ros})
     m = metrics(result)
     if out is not None:
         write_run(result, out, metrics=m)
-    print(
-        f"virtmech ros2-sim: {rig.scenario.name}: {device.k} cycles in {stepper.wall_s:.2f} s "
-        f"wall ({'lockstep' if lockstep else 'real time'}, commands on {command}: "
-        f"{node.ex.received} received, {node.rejected} rejected"
-        + (
-            f", {node.ex.ignored} ignored, {stepper.missed} missed, {node.resent} joint states "
-            "sent again"
-            if lockstep
-            else f", {stepper.behind} cycles behind"
-        )
-        + f"); round trip median {ros['round_trip_median_ms']:.3f} ms, p99 "
-        f"{ros['round_trip_p99_ms']:.3f} ms; dist max {m['dist_max_m'] * 1e3:.3f} mm"
-        + (f"; wrote {out}/log.csv, run.json" if out is not None else "")
-        + (f"; ended by {how}" if how == "signal" else "")
-    )
+    print(_summary(rig.scenario.name, node, stepper, ros, m, out, how))
     return 0

@@ -83,77 +83,96 @@ class Field:
         self._check_range(path, float(v))
         return float(v)
 
-    def check(self, path: str, v: Any) -> Any:
-        k = self.kind
-        if k == "number":
-            return self._number(path, v)
-        if k == "integer":
-            if isinstance(v, bool) or not isinstance(v, int):
-                raise ScenarioError(
-                    f"{path}: expected an integer, got {type(v).__name__} {_show(v)}"
-                )
-            self._check_range(path, v)
-            return int(v)
-        if k == "bool":
-            if not isinstance(v, bool):
-                raise ScenarioError(
-                    f"{path}: expected true or false, got {type(v).__name__} {_show(v)}"
-                )
-            return v
-        if k == "string":
-            if not isinstance(v, str):
-                raise ScenarioError(f"{path}: expected a string, got {type(v).__name__} {_show(v)}")
-            if self.choices and v not in self.choices:
-                raise ScenarioError(
-                    f"{path}: value {_show(v)} is not allowed; expected one of "
-                    + ", ".join(repr(c) for c in self.choices)
-                )
-            if self.pattern is not None and not re.fullmatch(self.pattern, v):
-                raise ScenarioError(f"{path}: value {_show(v)} is not allowed; expected {self.doc}")
-            return v
-        if k == "vector":
-            n = f"{self.length} numbers" if self.length else "a list of numbers"
-            if not isinstance(v, list):
-                raise ScenarioError(f"{path}: expected {n}, got {type(v).__name__} {_show(v)}")
-            if self.length is not None and len(v) != self.length:
-                raise ScenarioError(f"{path}: expected {n}, got {len(v)} values {_show(v)}")
-            if self.min_length is not None and len(v) < self.min_length:
-                raise ScenarioError(
-                    f"{path}: expected at least {self.min_length} values, got {len(v)} {_show(v)}"
-                )
-            if self.element is not None:
-                return [self.element.check(f"{path}[{i}]", x) for i, x in enumerate(v)]
-            out = [self._number(f"{path}[{i}]", x) for i, x in enumerate(v)]
-            if self.nonzero:
-                return _direction(path, v, out)
-            return out
-        if k == "axis":  # a choice string or a 3-vector
-            if isinstance(v, str):
-                return Field("string", choices=self.choices).check(path, v)
-            if isinstance(v, list):
-                return Field("vector", length=3, nonzero=True).check(path, v)
+    def _integer(self, path: str, v: Any) -> int:
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise ScenarioError(f"{path}: expected an integer, got {type(v).__name__} {_show(v)}")
+        self._check_range(path, v)
+        return int(v)
+
+    def _bool(self, path: str, v: Any) -> bool:
+        if not isinstance(v, bool):
             raise ScenarioError(
-                f"{path}: expected one of {', '.join(repr(c) for c in self.choices or ())} "
-                "or 3 numbers, "
-                f"got {type(v).__name__} {_show(v)}"
+                f"{path}: expected true or false, got {type(v).__name__} {_show(v)}"
             )
-        if k == "table":
-            return check_table(path, v, self)
-        if k == "tables":
-            if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
-                raise ScenarioError(
-                    f"{path}: expected an array of tables ([[{path}]]), got {_show(v)}"
-                )
-            out, errors = [], []
-            for i, x in enumerate(v):
-                try:
-                    out.append(check_table(f"{path}[{i}]", x, self))
-                except ScenarioError as e:
-                    errors += e.messages
-            if errors:
-                raise ScenarioError(*errors)
-            return out
-        raise AssertionError(k)
+        return v
+
+    def _string(self, path: str, v: Any) -> str:
+        if not isinstance(v, str):
+            raise ScenarioError(f"{path}: expected a string, got {type(v).__name__} {_show(v)}")
+        if self.choices and v not in self.choices:
+            raise ScenarioError(
+                f"{path}: value {_show(v)} is not allowed; expected one of "
+                + ", ".join(repr(c) for c in self.choices)
+            )
+        if self.pattern is not None and not re.fullmatch(self.pattern, v):
+            raise ScenarioError(f"{path}: value {_show(v)} is not allowed; expected {self.doc}")
+        return v
+
+    def _vector(self, path: str, v: Any) -> list:
+        n = f"{self.length} numbers" if self.length else "a list of numbers"
+        if not isinstance(v, list):
+            raise ScenarioError(f"{path}: expected {n}, got {type(v).__name__} {_show(v)}")
+        if self.length is not None and len(v) != self.length:
+            raise ScenarioError(f"{path}: expected {n}, got {len(v)} values {_show(v)}")
+        if self.min_length is not None and len(v) < self.min_length:
+            raise ScenarioError(
+                f"{path}: expected at least {self.min_length} values, got {len(v)} {_show(v)}"
+            )
+        if self.element is not None:
+            return [self.element.check(f"{path}[{i}]", x) for i, x in enumerate(v)]
+        out = [self._number(f"{path}[{i}]", x) for i, x in enumerate(v)]
+        if self.nonzero:
+            return _direction(path, v, out)
+        return out
+
+    def _axis(self, path: str, v: Any) -> str | list[float]:
+        """A choice string or a 3-vector."""
+        if isinstance(v, str):
+            return Field("string", choices=self.choices).check(path, v)
+        if isinstance(v, list):
+            return Field("vector", length=3, nonzero=True).check(path, v)
+        raise ScenarioError(
+            f"{path}: expected one of {', '.join(repr(c) for c in self.choices or ())} "
+            "or 3 numbers, "
+            f"got {type(v).__name__} {_show(v)}"
+        )
+
+    def _table(self, path: str, v: Any) -> dict:
+        return check_table(path, v, self)
+
+    def _tables(self, path: str, v: Any) -> list[dict]:
+        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+            raise ScenarioError(f"{path}: expected an array of tables ([[{path}]]), got {_show(v)}")
+        out, errors = [], []
+        for i, x in enumerate(v):
+            try:
+                out.append(check_table(f"{path}[{i}]", x, self))
+            except ScenarioError as e:
+                errors += e.messages
+        if errors:
+            raise ScenarioError(*errors)
+        return out
+
+    def check(self, path: str, v: Any) -> Any:
+        """v checked against this field (defaults filled in, directions normalised); raises a
+        ScenarioError naming `path`, the value and what was expected."""
+        checker = _CHECKERS.get(self.kind)
+        if checker is None:
+            raise AssertionError(self.kind)
+        return checker(self, path, v)
+
+
+#: each kind's check
+_CHECKERS = {
+    "number": Field._number,
+    "integer": Field._integer,
+    "bool": Field._bool,
+    "string": Field._string,
+    "vector": Field._vector,
+    "axis": Field._axis,
+    "table": Field._table,
+    "tables": Field._tables,
+}
 
 
 def _direction(path: str, v: Any, x: list[float]) -> list[float]:

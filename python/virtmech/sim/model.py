@@ -64,10 +64,28 @@ class DeviceModel:
 
     @staticmethod
     def for_device(device_name: str) -> DeviceModel:
-        """Defaults by device name: the Omni's, the Planar3R's, else the Omni's without its
-        waist turret (a generic arm of light links)."""
+        """Defaults by device name: the Omni's, the Planar3R's, a Cartesian device's (its
+        scenario type or one of its models' names), else the Omni's without its waist turret
+        (a generic arm of light links)."""
         if device_name == "PhantomOmni":
             return DeviceModel()
+        if device_name == "CartesianDevice" or device_name in vm.CartesianDevice.MODELS:
+            # three slides and a wrist: link_mass is each slide's carriage [kg], armature the
+            # mass its motor and transmission reflect there [kg], joint_friction [N] and
+            # joint_damping [N·s/m] on the slides; a handle of about 0.2 kg apparent mass and
+            # 0.1 N of friction: simulation parameters, not measured or datasheet figures
+            return DeviceModel(
+                link_mass=0.02,
+                base_mass=0.0,
+                armature=0.15,
+                joint_friction=0.1,
+                joint_damping=0.05,
+                passive_friction=2.0e-4,
+                passive_damping=2.0e-5,
+                gimbal_mass=0.01,
+                stylus_mass=0.02,
+                stylus_com=-0.02,
+            )
         if device_name == "Planar3R":
             return DeviceModel(
                 link_mass=0.15,
