@@ -301,6 +301,7 @@ std::uint32_t null_space_term(const ControllerModel& M, const Mechanism& mech,
               out.error_dot);
   const Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);
   out.wrench_null = d.projector_a.null(F);
+  if (M.under_actuated_term) d.null_soft_excess = out.wrench_null - (F - d.projector_a.range(F));
   return let_go(mech, p, M.w_a, out.wrench_null);
 }
 
@@ -324,11 +325,12 @@ std::uint32_t range_space_term(const ControllerModel& M, const Mechanism& mech,
   locked_rate(M, mech, p, M.w_e_star_effective, M.w_e_star_inverse, d.v_R, true, d.rate_star,
               d.rate_partial, out.error_star_dot);
   const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
-  // (with the soft rank: a direction the null-space term renders near a singular pose is
-  // not rendered here again)
-  out.wrench_range = P->soft_range(F);
+  // (near a singular pose the null-space term's soft rank renders a share of the directions
+  // its hard cut would leave to this term: that share is not rendered here again, so that
+  // the two terms together are eq. 26 with the hard cut)
+  out.wrench_range = P->range(F) - d.null_soft_excess;
   if (M.passivity != Passivity::kOff) {
-    d.passivity.range_spring = P->soft_range(M.kp.cwiseProduct(out.error_star));
+    d.passivity.range_spring = P->range(M.kp.cwiseProduct(out.error_star));
   }
   return let_go(mech, p, M.w_a, out.wrench_range);
 }
@@ -600,7 +602,7 @@ std::uint32_t Controller::render_cycle(CycleOutput& out) noexcept {
   const std::uint32_t let_go_range = M.under_actuated_term ? range_space_term(M, mech, d, out) : 0u;
   Vector6 f = out.wrench_null + out.wrench_range;
 
-  detail::passivity(M, dev, d.passivity, q, d.dq_cycle.data(), d.v_R, out);
+  detail::passivity(M, dev, d.passivity, q, d.v_R, out);
   f += out.wrench_passivity;
   keep_renderable(M, dev, d, f, out);
   safety(M, dev, d, f, out);

@@ -38,30 +38,49 @@ void restart_passivity(PassivityState& s, bool springs) noexcept {
 
 namespace {
 
+// The most intervals a joint's booked torque is averaged over: 0.1 s at 1 kHz, several
+// counts' time at the slowest motion the observer follows.
+constexpr double kTorqueWindow = 100.0;
+
 double median(double a, double b, double c) noexcept {
   return std::max(std::min(a, b), std::min(std::max(a, b), c));
 }
 
-// The observer (docs/theory.md, section 8): at cycle k it books the torque held over
-// [k - 2, k - 1] against the displacement p_{k-1} - p_{k-2}, where p follows the joint
-// velocity and is held within the play h of q~_{k-1} = median(q_{k-2}, q_{k-1}, q_k).
+// The observer (docs/theory.md, section 8): at cycle k it books, joint by joint, the torque
+// held since that joint's displacement p last moved, averaged over those intervals (at most
+// kTorqueWindow of them), against p's move p_{k-1} - p_{k-2}, where p is held within the play
+// h of q~_{k-1} = median(q_{k-2}, q_{k-1}, q_k) and moves only as far as the play makes it.
 // Returns that work [J] (0 until two intervals have passed since the restart).
-double observed_work(const ControllerModel& M, int n, PassivityState& s, const double* q,
-                     const double* dq) noexcept {
+double observed_work(const ControllerModel& M, int n, PassivityState& s,
+                     const double* q) noexcept {
   double work = 0.0, pending = 0.0;
   if (s.cycles == 0) {
     s.q_before.resize(n);
     s.q_last.resize(n);
     s.played.resize(n);
-    s.dq_last.resize(n);
+    s.torque_sum.setZero(n);
+    s.torque_count.setZero(n);
     for (int i = 0; i < n; ++i) s.q_before[i] = s.q_last[i] = s.played[i] = q[i];
   } else if (s.cycles >= 2) {
     for (int i = 0; i < n; ++i) {
+      // the torque held over [k - 2, k - 1] joins the joint's average (a running mean over
+      // the last kTorqueWindow intervals where p has stood still longer)
+      if (s.torque_count[i] >= kTorqueWindow) {
+        s.torque_sum[i] *= (kTorqueWindow - 1.0) / kTorqueWindow;
+      } else {
+        s.torque_count[i] += 1.0;
+      }
+      s.torque_sum[i] += s.tau_before[i];
       const double settled = median(s.q_before[i], s.q_last[i], q[i]);
       const double h = M.passivity_play[i];
-      const double p = std::clamp(s.played[i] + s.dq_last[i] * M.period_s, settled - h, settled + h);
-      work += s.tau_before[i] * (p - s.played[i]);
-      pending += s.tau_last[i] * (settled - p);
+      const double p = std::clamp(s.played[i], settled - h, settled + h);
+      const double mean = s.torque_sum[i] / s.torque_count[i];
+      if (p != s.played[i]) {
+        work += mean * (p - s.played[i]);
+        s.torque_sum[i] = 0.0;
+        s.torque_count[i] = 0.0;
+      }
+      pending += (s.torque_sum[i] + s.tau_last[i]) / (s.torque_count[i] + 1.0) * (settled - p);
       s.played[i] = p;
     }
   }
@@ -71,7 +90,6 @@ double observed_work(const ControllerModel& M, int n, PassivityState& s, const d
       s.q_last[i] = q[i];
     }
   }
-  for (int i = 0; i < n; ++i) s.dq_last[i] = dq[i];
   s.pending = std::max(0.0, pending);
   return work;
 }
@@ -79,7 +97,7 @@ double observed_work(const ControllerModel& M, int n, PassivityState& s, const d
 }  // namespace
 
 void passivity(const ControllerModel& M, const Device& dev, PassivityState& s, const double* q,
-               const double* dq, const Vector6& twist, CycleOutput& out) noexcept {
+               const Vector6& twist, CycleOutput& out) noexcept {
   out.wrench_passivity.setZero();
   out.passivity_scale = 1.0;
   if (M.passivity == Passivity::kOff) {
@@ -98,7 +116,7 @@ void passivity(const ControllerModel& M, const Device& dev, PassivityState& s, c
   }
   out.stored_energy = stored;
   const bool restart = s.cycles == 0;
-  const double work = observed_work(M, n, s, q, dq);
+  const double work = observed_work(M, n, s, q);
   // the start hands the rendering what its springs hold, at most passivity_start_energy_j; a
   // restart
   // after a fault or a watchdog trip (or of a set's member as it engages) starts empty: the

@@ -23,10 +23,10 @@ void restart_passivity(PassivityState& s, bool springs) noexcept;
 /// level's aim (one fade time ahead at the range term's power) by at most one fade step; the
 /// range term is rendered limited to the wrench limits and times the factor. Writes
 /// out.energy, stored_energy, passivity_scale, wrench_passivity (the rendered range term
-/// less out.wrench_range) and the status bit kPassivity. q, dq: the cycle's joints (dof());
+/// less out.wrench_range) and the status bit kPassivity. q: the cycle's joints (dof());
 /// twist: the handle's, J_R dq.
 void passivity(const ControllerModel& M, const Device& dev, PassivityState& s, const double* q,
-               const double* dq, const Vector6& twist, CycleOutput& out) noexcept;
+               const Vector6& twist, CycleOutput& out) noexcept;
 
 /// After safety: the cycle's torque, held until the next cycle, enters the observer.
 void hold_torque(const ControllerModel& M, PassivityState& s, const JointVector& torque) noexcept;

@@ -184,6 +184,9 @@ struct ControllerData {
   Pose handle_pose = Pose::Identity();
   Jacobian J_R;     //!< device Jacobian at q
   Vector6 v_R;      //!< handle twist J_R dq
+  /// What the null-space term's soft rank renders beyond N(W_A) with the rank's hard cut,
+  /// (P - P_phi)(Kp e + Kv e_dot): the range term leaves it out (docs/theory.md, 6).
+  Vector6 null_soft_excess = Vector6::Zero();
   // one projector per weighting, so that each keeps its weights' square roots
   WeightedProjector rate;         //!< sqrt(W_e) J_V at the nearest placement: its rate
   WeightedProjector rate_star;    //!< sqrt(W_e*) J_V at the un-powered placement: its rate

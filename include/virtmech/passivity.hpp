@@ -14,10 +14,13 @@ namespace virtmech {
 ///
 /// The observer books cycle k - 2's torque over its interval at cycle k, once q_k is known:
 /// the displacement over that interval is taken between q~_{k-2} and q~_{k-1}, where q~ is
-/// the median of three consecutive readings (a one-cycle glitch is not motion), followed by
-/// the joint velocity dq and held within +-resolution of q~ (a play: an encoder flipping
-/// between two counts is no motion either, while motion beyond a count is followed count by
-/// count, so that the energy a zero-order-hold spring makes is seen).
+/// the median of three consecutive readings (a one-cycle glitch is not motion), held within
+/// half a count of q~ (a play: an encoder flipping between two counts is no motion either,
+/// while motion beyond it is followed count by count), each joint's move booked with the
+/// torque averaged over the cycles since its last (those in which it travelled the count).
+/// The displacement is the readings' alone, never the velocity estimate: the law's damping acts on that estimate, so a
+/// displacement that followed it would book the damping's dissipation of the estimate's
+/// spikes, not of the joint's motion.
 struct PassivityState {
   double energy = 0.0;  //!< the tank's level E [J]
   /// The work the held torque does over the displacement the observer's play has not
@@ -40,8 +43,9 @@ struct PassivityState {
   bool start_with_springs = true;
   JointVector q_before;    //!< q two cycles back (the median's first reading)
   JointVector q_last;      //!< q one cycle back
-  JointVector dq_last;     //!< dq one cycle back
   JointVector played;      //!< the observer's displacement two cycles back
+  /// per joint: the torques held since its displacement last moved, summed, and how many
+  JointVector torque_sum, torque_count;
   JointVector tau_before;  //!< the torque held from two cycles back to one cycle back
   JointVector tau_last;    //!< the torque held since the last cycle
   /// The range term's spring P(W_A) Kp e* of the cycle, for what the springs hold.

@@ -28,7 +28,7 @@ def motion(name: str, **settings):
 
 def reference_tank(c: vm.Controller) -> Tank:
     m = c.model
-    return Tank(m["passivity_play"], m["period_s"], m["passivity_max_energy_j"],
+    return Tank(m["passivity_play"], m["passivity_max_energy_j"],
                 start_energy=m["passivity_start_energy_j"])
 
 
@@ -58,7 +58,7 @@ def test_the_level_is_the_springs_energy_at_the_start_less_the_observed_work(nam
     capped = 0
     for k in range(N):
         out = c.step(q[k], dq[k])
-        level = tank.cycle(q[k], dq[k], out.stored_energy)
+        level = tank.cycle(q[k], out.stored_energy)
         assert out.energy == pytest.approx(level, abs=1e-12, rel=1e-9), k
         capped += k > 0 and tank.capped
         tank.hold(out.torque)
@@ -100,7 +100,7 @@ def test_the_range_terms_factor_moves_toward_its_aim_by_at_most_a_step():
     for k in range(N):
         out = c.step(q[k], dq[k])
         twist = c.device.jacobian(q[k]) @ dq[k]
-        tank.cycle(q[k], dq[k], out.stored_energy)
+        tank.cycle(q[k], out.stored_energy)
         scale, held_back = factor.cycle(out.energy, out.wrench_range, twist, tank.pending)
         tank.hold(out.torque)
         assert out.passivity_scale == pytest.approx(scale, abs=1e-12), k

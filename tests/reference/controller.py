@@ -79,6 +79,9 @@ class NpController:
         H_Ap, rank_v = gram_pinv(J_V, self.w_a)
         f = soft_null(J_V, self.w_a, F)
         if self.under_actuated:
+            # the range term leaves out the share of its directions the soft rank's null
+            # filter renders (docs/theory.md, 5): together, eq. 26 with the hard cut
+            f = F - WJ_A @ (H_Ap @ (J_V.T @ F))
             if self.first:
                 self.theta_star = self.theta.copy()
             self.theta_star, converged = place(mech, T_R, self.w_e_star, self.theta_star,

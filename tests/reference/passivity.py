@@ -2,9 +2,13 @@
 NumPy, for the tests to replay a controller's cycles against:
 
     q~_k = median(q_{k-1}, q_k, q_{k+1})
-    p_k  = clamp(p_{k-1} + dq_k T, q~_k - h, q~_k + h)     (h: half an encoder count)
-    W_k  = tau_{k-1} . (p_k - p_{k-1})             booked at cycle k + 1
-    R_k  = max(0, tau_k . (q~_k - p_k))           the play's pending motor work
+    p_k  = clamp(p_{k-1}, q~_k - h, q~_k + h)     (h: half an encoder count)
+    W_k  = sum_i m_i (p_k,i - p_{k-1},i)           booked at cycle k + 1
+    R_k  = max(0, sum_i m'_i (q~_k,i - p_k,i))    the play's pending motor work
+
+where m_i is the mean of joint i's torques tau_{j-1,i} over the intervals since its p last
+moved, up to and including [k - 1, k] (a running mean of the last WINDOW where it stood
+still longer), and m'_i that mean with tau_k,i as well
     E_0  = min(V_0, E_start) at the start, 0 after a fault
     E_{k+1} = min(E_k - W_k, V_{k+1} + E_max)
 
@@ -25,15 +29,16 @@ import math
 
 import numpy as np
 
+WINDOW = 100  # the most intervals a joint's booked torque is averaged over
+
 
 class Tank:
-    """One run of the tank from a restart: `cycle(q, dq, stored)` before the cycle's torque
+    """One run of the tank from a restart: `cycle(q, stored)` before the cycle's torque
     is known returns the level the controller reports; `hold(tau)` after it."""
 
-    def __init__(self, play, period_s: float, max_energy: float, springs: bool = True,
+    def __init__(self, play, max_energy: float, springs: bool = True,
                  start_energy: float = 0.001):
         self.h = np.asarray(play, dtype=float)
-        self.T = period_s
         self.e_max = max_energy
         self.e_start = start_energy
         self.springs = springs  # the start (True) or a restart after a fault (False)
@@ -42,21 +47,30 @@ class Tank:
         self.capped = False  # the cap lowered the level this cycle
         self.pending = 0.0  # R_k
 
-    def cycle(self, q, dq, stored: float) -> float:
-        q, dq = np.asarray(q, dtype=float), np.asarray(dq, dtype=float)
+    def cycle(self, q, stored: float) -> float:
+        q = np.asarray(q, dtype=float)
         work = 0.0
         self.pending = 0.0
         if self.cycles == 0:
             self.q_before = self.q_last = self.p = q.copy()
+            self.sums, self.counts = np.zeros_like(q), np.zeros_like(q)
         elif self.cycles >= 2:
+            # each joint's torque since its p last moved: a mean over at most WINDOW intervals
+            full = self.counts >= WINDOW
+            self.sums = np.where(full, self.sums * (WINDOW - 1) / WINDOW, self.sums)
+            self.counts = np.where(full, self.counts, self.counts + 1)
+            self.sums = self.sums + self.tau_before
             settled = np.median(np.stack([self.q_before, self.q_last, q]), axis=0)
-            p = np.clip(self.p + self.dq_last * self.T, settled - self.h, settled + self.h)
-            work = float(self.tau_before @ (p - self.p))
-            self.pending = max(0.0, float(self.tau_last @ (settled - p)))
+            p = np.clip(self.p, settled - self.h, settled + self.h)
+            moved = p != self.p
+            work = float(np.sum(np.where(moved, self.sums / self.counts * (p - self.p), 0.0)))
+            self.sums = np.where(moved, 0.0, self.sums)
+            self.counts = np.where(moved, 0.0, self.counts)
+            mean = (self.sums + self.tau_last) / (self.counts + 1)
+            self.pending = max(0.0, float(mean @ (settled - p)))
             self.p = p
         if self.cycles > 0:
             self.q_before, self.q_last = self.q_last, q.copy()
-        self.dq_last = dq.copy()
         if self.cycles == 0:
             self.level = min(stored, self.e_start) if self.springs else 0.0
         else:
