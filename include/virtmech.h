@@ -7,6 +7,10 @@
  * vm_controller_diagnostics and their vm_mechanism_set_ counterparts never allocate and never
  * block. All units SI (m, rad, N, N·m, s); convert from device-native units (mm, mN·m) at the
  * boundary.
+ *
+ * Threads: a vm_controller or a vm_mechanism_set belongs to one thread at a time (its calls
+ * are not for concurrent use: one per servo thread); shapes (vm_nurbs_curve, ...) are
+ * immutable once created and may be used by controllers on any number of threads.
  */
 #ifndef VIRTMECH_H_
 #define VIRTMECH_H_
@@ -39,6 +43,7 @@ extern "C" {
 #define VM_STATUS_FAULT_NONFINITE_OUTPUT (1u << 9)
 #define VM_STATUS_FAULT_BAD_SIZE (1u << 10)
 #define VM_STATUS_FAULT_OUT_OF_RANGE (1u << 11) /* q beyond the joint range + margin */
+#define VM_STATUS_FAULT_IMPLAUSIBLE_VELOCITY (1u << 12) /* dq beyond the device's speeds + margin */
 #define VM_STATUS_FAULT_MASK 0xFF00u
 
 /* Largest number of joints of a device or mechanism. */

@@ -28,6 +28,7 @@ static_assert(VM_STATUS_FAULT_NONFINITE_INPUT == status::kFaultNonFiniteInput);
 static_assert(VM_STATUS_FAULT_NONFINITE_OUTPUT == status::kFaultNonFiniteOutput);
 static_assert(VM_STATUS_FAULT_BAD_SIZE == status::kFaultBadSize);
 static_assert(VM_STATUS_FAULT_OUT_OF_RANGE == status::kFaultOutOfRange);
+static_assert(VM_STATUS_FAULT_IMPLAUSIBLE_VELOCITY == status::kFaultImplausibleVelocity);
 static_assert(VM_STATUS_FAULT_MASK == status::kFaultMask);
 static_assert(VM_MAX_DOF == kMaxDof);
 static_assert(VM_MAX_SET_MEMBERS == kMaxSetMembers);

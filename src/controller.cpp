@@ -6,10 +6,12 @@
 
 #include "cycle_clock.hpp"
 #include "flush_denormals.hpp"
+#include "passivity.hpp"
 #include "track_detail.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/validate.hpp"
+#include "wrench_limit.hpp"
 
 namespace virtmech {
 
@@ -43,29 +45,32 @@ JointVector warm_start(const Mechanism& mech, const TrackOptions& opts, const Jo
 namespace {
 
 // Zero torque and a fault bit; the next good cycle starts placements afresh and ramps in.
-void fault(const Device& dev, ControllerData& d, std::uint32_t bits, CycleOutput& out) noexcept {
+void fault(const ControllerModel& M, const Device& dev, ControllerData& d, std::uint32_t bits,
+           CycleOutput& out) noexcept {
   out.status |= bits;
   out.torque.setZero(dev.dof());
-  d.energy = 0.0;  // the tank starts afresh with the ramp-in
-  d.range_scale = 1.0;
-  d.have_last_torque = false;
+  detail::restart_passivity(d.passivity, false);  // the tank starts afresh with the ramp-in
   out.wrench.setZero();
   out.ramp = 0.0;
   out.limit_scale = 1.0;
   d.ramp_count = 0;
+  d.ramp_cycles = M.fault_ramp_cycles;  // however short ramp_time_s, the force never steps back
   d.first = true;
 }
 
-// q and dq finite, q inside the device's range widened by the margin (docs/theory.md, 9).
+// q and dq finite, q inside the device's range widened by the margin, dq within the
+// device's fastest plausible speeds plus the margin (docs/theory.md, 9).
 std::uint32_t check_input(const ControllerModel& M, const Device& dev, const double* q,
                           const double* dq) noexcept {
   const int n = dev.dof();
   const Eigen::Map<const JointVector> qv(q, n), dqv(dq, n);
   if (!qv.allFinite() || !dqv.allFinite()) return status::kFaultNonFiniteInput;
+  std::uint32_t bad = status::kOk;
   for (int i = 0; i < n; ++i) {
-    if (q[i] < M.q_min[i] || q[i] > M.q_max[i]) return status::kFaultOutOfRange;
+    if (q[i] < M.q_min[i] || q[i] > M.q_max[i]) bad |= status::kFaultOutOfRange;
+    if (std::abs(dq[i]) > M.dq_max[i]) bad |= status::kFaultImplausibleVelocity;
   }
-  return status::kOk;
+  return bad;
 }
 
 // A gap longer than watchdog_s, or time running backwards, restarts the ramp-in.
@@ -74,11 +79,10 @@ void watchdog(const ControllerModel& M, ControllerData& d, double t_s, CycleOutp
   if (std::isfinite(d.last_t) && (t_s - d.last_t > M.watchdog_s || t_s < d.last_t)) {
     out.status |= status::kWatchdog;
     d.ramp_count = 0;
+    d.ramp_cycles = M.fault_ramp_cycles;
     // the torque the motors held over the gap is unknown (an amplifier may have dropped it):
     // the energy tank starts afresh, as after a fault
-    d.energy = 0.0;
-    d.range_scale = 1.0;
-    d.have_last_torque = false;
+    detail::restart_passivity(d.passivity, false);
   }
   d.last_t = t_s;
 }
@@ -123,7 +127,8 @@ JointVector placement_start(const ControllerModel& M, const Mechanism& mech, con
   return theta0;
 }
 
-void placed(const Mechanism& mech, bool first, const JointVector& theta, Placement& p) noexcept;
+void placed(const Mechanism& mech, const Vector6& W, bool first, const JointVector& theta,
+            Placement& p) noexcept;
 
 // Places the mechanism for the handle pose with weights W (eqs. 18-20), warm-started, and
 // records the active set: joints held at a limit are locked (their columns leave J_free).
@@ -134,7 +139,7 @@ void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
   JointVector theta;
   p.result = detail::track(mech, target, opts, PlacementIO{&W, &theta0, &theta, &p.pose, &p.J,
                                                             &p.error});
-  placed(mech, first, theta, p);
+  placed(mech, W, first, theta, p);
 }
 
 // Both placements of a cycle after its first in one closed form (Mechanism::place_pair),
@@ -150,19 +155,44 @@ bool place_pair(const ControllerModel& M, const Mechanism& mech, const Pose& tar
   if (!mech.place_pair(target, io_a, io_b)) return false;
   a.result = detail::closed_form_result(mech, M.w_e_effective, theta_a, a.J, a.error);
   b.result = detail::closed_form_result(mech, M.w_e_star_effective, theta_b, b.J, b.error);
-  placed(mech, false, theta_a, a);
-  placed(mech, false, theta_b, b);
+  placed(mech, M.w_e_effective, false, theta_a, a);
+  placed(mech, M.w_e_star_effective, false, theta_b, b);
   return true;
 }
 
 // A placement's bookkeeping once theta, its pose, Jacobian, error and result are in: the warm
-// start's history, the active set and J_free, the constraint wrench.
-void placed(const Mechanism& mech, bool first, const JointVector& theta, Placement& p) noexcept {
+// start's history, the active set, its lock weights and J_free, the constraint wrench.
+void placed(const Mechanism& mech, const Vector6& W, bool first, const JointVector& theta,
+            Placement& p) noexcept {
   p.extrapolate = !first && p.result.converged && p.converged;
   p.converged = p.result.converged;
   p.theta_prev = first ? theta : p.theta;
   p.theta = theta;
   p.active = p.result.active;
+  // how far the cost presses each active joint past its bound, as a depth: the step the
+  // weighted error asks of the joint alone, |J_i^T W e| / (J_i^T W J_i), times its column's
+  // length-scaled norm |J_i|_U (for a lift-off joint, the tip's depth)
+  p.partial = 0;
+  p.partial_lock = 1.0;
+  if (p.active) {
+    const Vector6 We = W.cwiseProduct(p.error);
+    const double L2 = mech.length_scale() * mech.length_scale();
+    for (int i = 0; i < mech.dof(); ++i) {
+      if (!((p.active >> i) & 1u)) continue;
+      const auto Ji = p.J.col(i);
+      const double g = std::abs(Ji.dot(We)), norm2 = Ji.dot(W.cwiseProduct(Ji));
+      const double length =
+          std::sqrt(Ji.head<3>().squaredNorm() + L2 * Ji.tail<3>().squaredNorm());
+      // depth = g length / norm2 < kLockDepthM: partly locked
+      const double lock =
+          g * length < kLockDepthM * norm2 ? g * length / (norm2 * kLockDepthM) : 1.0;
+      p.lock[static_cast<size_t>(i)] = lock;
+      if (lock < 1.0) {
+        p.partial |= 1u << i;
+        p.partial_lock = std::min(p.partial_lock, lock);
+      }
+    }
+  }
   free_columns(p.J, p.active, p.J_free);
   p.has_wrench = mech.constraint_wrench(p.theta.data(), p.pose, p.J, p.active, p.wrench);
 }
@@ -195,9 +225,32 @@ void error_rate(const ControllerModel& M, const Placement& p, const Vector6& W,
   e_dot = proj.residual(v_R);  // J (J^T W J)^+ J^T W v_R - v_R
 }
 
+// e_dot with the partly locked joints (docs/theory.md, 6): error_rate()'s, every active
+// joint locked, blended toward the rate with the partly locked ones free by their least lock
+// weight, so that a contact's damping builds up with its depth. `scratch` factorises the
+// second rate where the mechanism has no constraint wrench for it.
+void locked_rate(const ControllerModel& M, const Mechanism& mech, const Placement& p,
+                 const Vector6& W, const Vector6& W_inv, const Vector6& v_R, bool factorised,
+                 WeightedProjector& proj, WeightedProjector& scratch, Vector6& e_dot) noexcept {
+  error_rate(M, p, W, W_inv, v_R, factorised, proj, e_dot);
+  if (!p.partial || M.error_velocity == ErrorVelocity::kHandle) return;
+  const std::uint32_t held = p.active & ~p.partial;
+  Vector6 n = Vector6::Zero(), free_rate;
+  if (W_inv[0] > 0.0 && mech.constraint_wrench(p.theta.data(), p.pose, p.J, held, n)) {
+    const Vector6 Wn = W_inv.cwiseProduct(n);
+    free_rate = (-n.dot(v_R) / n.dot(Wn)) * Wn;
+  } else {
+    Jacobian J;
+    free_columns(p.J, held, J);
+    scratch.compute(J, W);
+    free_rate = scratch.residual(v_R);
+  }
+  e_dot = free_rate + p.partial_lock * (e_dot - free_rate);
+}
+
 // The factorisations the terms' first pass needs, all at once (WeightedProjector::
 // compute_all overlaps them): the nearest placement's rate and P(W_A) there, the un-powered
-// placement's rate. A pass that releases a limit factorises again.
+// placement's rate.
 void factorise_first_pass(const ControllerModel& M, ControllerData& d) noexcept {
   WeightedProjector::Job jobs[3];
   int n = 0;
@@ -217,44 +270,39 @@ void factorise_first_pass(const ControllerModel& M, ControllerData& d) noexcept 
   WeightedProjector::compute_all(jobs, n);
 }
 
-// A limit pushes and never pulls: joints of `active` whose motion the wrench f drives back
-// past their bound (the sticking pull of damping as the handle leaves a surface).
-std::uint32_t pulling(const Mechanism& mech, const Placement& p, const Vector6& f) noexcept {
-  // (the push of a limit on the handle drives theta_i away from its bound)
-  std::uint32_t pull = 0;
+// A limit pushes and never pulls: for each joint of the placement held at a limit whose
+// motion the wrench f drives back past its bound (the sticking pull of damping as the handle
+// leaves a surface), f loses that drive, W_A J_i (J_i^T f) / (J_i^T W_A J_i) times the
+// joint's lock weight (a clamp: continuous in f, nothing removed where nothing pulls).
+// Returns the joints that pulled.
+std::uint32_t let_go(const Mechanism& mech, const Placement& p, const Vector6& W_A,
+                     Vector6& f) noexcept {
+  std::uint32_t pulled = 0;
   for (int i = 0; i < mech.dof(); ++i) {
     if (!((p.active >> i) & 1u)) continue;
     const double power = p.J.col(i).dot(f);  // > 0: f drives theta_i up
     const bool at_upper = (p.result.active_upper >> i) & 1u;
-    if (at_upper ? power > 0.0 : power < 0.0) pull |= 1u << i;
+    if (!(at_upper ? power > 0.0 : power < 0.0)) continue;
+    const Vector6 WJ_i = W_A.cwiseProduct(p.J.col(i));
+    const double norm = p.J.col(i).dot(WJ_i);
+    if (norm > 0.0) f -= (p.lock[static_cast<size_t>(i)] * power / norm) * WJ_i;
+    pulled |= 1u << i;
   }
-  return pull;
-}
-
-void release(const Mechanism& mech, std::uint32_t joints, Placement& p) noexcept {
-  p.active &= ~joints;
-  free_columns(p.J, p.active, p.J_free);
-  p.has_wrench = mech.constraint_wrench(p.theta.data(), p.pose, p.J, p.active, p.wrench);
+  return pulled;
 }
 
 // Null-space term N(W_A)(Kp e + Kv e_dot) (eqs. 7, 9, 11) at the nearest placement, locked
-// joints kept in the constraint.
-void null_space_term(const ControllerModel& M, const Mechanism& mech, ControllerData& d,
-                     CycleOutput& out) noexcept {
+// joints kept in the constraint; a limit only pushes. Returns the joints that pulled.
+std::uint32_t null_space_term(const ControllerModel& M, const Mechanism& mech,
+                              ControllerData& d, CycleOutput& out) noexcept {
   Placement& p = d.nearest;  // (out.error = -p.error: Controller::place wrote it)
   WeightedProjector& rate = M.w_a_shares_rate ? d.projector_a : d.rate;
-  for (int pass = 0; pass < 2; ++pass) {
-    error_rate(M, p, M.w_e_effective, M.w_e_inverse, d.v_R, pass == 0, rate, out.error_dot);
-    const Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);
-    // (a shared factorisation is error_rate()'s, unless the rate came from the wrench)
-    if (pass > 0 && (!M.w_a_shares_rate || rate_by_wrench(p, M.w_e_inverse))) {
-      d.projector_a.compute(p.J_free, M.w_a);
-    }
-    out.wrench_null = d.projector_a.null(F);
-    const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_null) : 0u;
-    if (!pull) break;
-    release(mech, pull, p);
-  }
+  locked_rate(M, mech, p, M.w_e_effective, M.w_e_inverse, d.v_R, true, rate, d.rate_partial,
+              out.error_dot);
+  const Vector6 F = M.kp.cwiseProduct(out.error) + M.kv.cwiseProduct(out.error_dot);
+  out.wrench_null = d.projector_a.null(F);
+  if (M.under_actuated_term) d.null_soft_excess = out.wrench_null - (F - d.projector_a.range(F));
+  return let_go(mech, p, M.w_a, out.wrench_null);
 }
 
 // Range-space term P(W_A)(Kp e* + Kv e*_dot) of eq. 26 with the un-powered placement's
@@ -263,8 +311,8 @@ void null_space_term(const ControllerModel& M, const Mechanism& mech, Controller
 // the nearest placement is singular, i.e. has lost a direction of motion the mechanism has
 // at the un-powered placement (a probe's stylus exactly along the normal, the handle at the
 // end of its reach), P is taken at the un-powered placement (docs/theory.md, 6).
-void range_space_term(const ControllerModel& M, const Mechanism& mech, ControllerData& d,
-                      CycleOutput& out) noexcept {
+std::uint32_t range_space_term(const ControllerModel& M, const Mechanism& mech,
+                               ControllerData& d, CycleOutput& out) noexcept {
   Placement& p = d.unpowered;  // (out.error_star = -p.error: Controller::place wrote it)
   // P(W_A) at the nearest placement, every column: the null term's when none is locked.
   // Neither it nor the un-powered placement's J (every column) changes between the passes.
@@ -274,28 +322,17 @@ void range_space_term(const ControllerModel& M, const Mechanism& mech, Controlle
     d.projector.compute(p.J, M.w_a);
     if (d.projector.rank() > P->rank()) P = &d.projector;
   }
-  std::uint32_t released = 0;
-  for (int pass = 0; pass < 2; ++pass) {
-    error_rate(M, p, M.w_e_star_effective, M.w_e_star_inverse, d.v_R, pass == 0, d.rate_star,
-               out.error_star_dot);
-    const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
-    out.wrench_range = P->range(F);
-    if (M.passivity != Passivity::kOff) d.range_spring = P->range(M.kp.cwiseProduct(out.error_star));
-    if (pass == 1) {
-      // a released limit lets go: no force along its joint's motion, as the null-space
-      // filter gives for the nearest placement (f <- f - W_A J_i (J_i^T f) / (J_i^T W_A J_i))
-      for (int i = 0; i < mech.dof(); ++i) {
-        if (!((released >> i) & 1u)) continue;
-        const Vector6 WJ_i = M.w_a.cwiseProduct(p.J.col(i));
-        const double norm = p.J.col(i).dot(WJ_i);
-        if (norm > 0.0) out.wrench_range -= (p.J.col(i).dot(out.wrench_range) / norm) * WJ_i;
-      }
-    }
-    const std::uint32_t pull = pass == 0 ? pulling(mech, p, out.wrench_range) : 0u;
-    if (!pull) break;
-    released = pull;
-    release(mech, pull, p);
+  locked_rate(M, mech, p, M.w_e_star_effective, M.w_e_star_inverse, d.v_R, true, d.rate_star,
+              d.rate_partial, out.error_star_dot);
+  const Vector6 F = M.kp.cwiseProduct(out.error_star) + M.kv.cwiseProduct(out.error_star_dot);
+  // (near a singular pose the null-space term's soft rank renders a share of the directions
+  // its hard cut would leave to this term: that share is not rendered here again, so that
+  // the two terms together are eq. 26 with the hard cut)
+  out.wrench_range = P->range(F) - d.null_soft_excess;
+  if (M.passivity != Passivity::kOff) {
+    d.passivity.range_spring = P->range(M.kp.cwiseProduct(out.error_star));
   }
+  return let_go(mech, p, M.w_a, out.wrench_range);
 }
 
 // Removes the part of f that would load the passive joints, by the smallest change in the
@@ -330,79 +367,11 @@ void keep_renderable(const ControllerModel& M, const Device& dev, ControllerData
   f -= out.wrench_unrendered;
 }
 
-// |f| > limit for |f|^2 = norm2, without the square root where limit^2 is finite
-inline bool exceeds(double norm2, double limit) noexcept {
-  return limit < 1e150 ? norm2 > limit * limit : std::sqrt(norm2) > limit;
-}
-
-// The energy a spring holds whose force at the error e is f (a linear spring: e^T f / 2),
-// its force saturating at the wrench limits: per block of three axes, beyond the limit it
-// grows with the limit times |e| (e^T f (s - s^2 / 2), s = limit / |f|).
-double saturated_spring(const Vector6& e, const Vector6& f, double force_limit,
-                        double moment_limit) noexcept {
-  double energy = 0.0;
-  for (int b = 0; b < 2; ++b) {
-    const double ef = e.segment<3>(3 * b).dot(f.segment<3>(3 * b));
-    const double norm2 = f.segment<3>(3 * b).squaredNorm();
-    const double limit = b == 0 ? force_limit : moment_limit;
-    // (the square root only where the force saturates)
-    const double s = exceeds(norm2, limit) ? limit / std::sqrt(norm2) : 1.0;
-    energy += ef * (s - 0.5 * s * s);
-  }
-  // (an oblique projection can make e^T f negative: a spring holds no negative energy)
-  return std::max(energy, 0.0);
-}
-
-// Energy tank (docs/theory.md, "Passivity"). Its level is the energy the rendering has
-// absorbed: the motors' work over each cycle as the controller sees it, the torque held
-// (zero-order) times the measured displacement, is taken from it. It starts empty (also
-// after a fault or a watchdog trip: a restart must not hand the motors the energy of a
-// spring stretched meanwhile) and holds at most what the law's springs hold plus
-// passivity_max_energy_j. Eq. 26's range term is rendered
-// in full while the level is not below zero and fades out linearly as it falls to
-// -passivity_fade_j: the range term never gives more than the user put in, plus that. The
-// null-space term, a spring-damper about the nearest placement, is rendered as it is.
-void passivity(const ControllerModel& M, const Device& dev, ControllerData& d, const double* q,
-               CycleOutput& out) noexcept {
-  out.wrench_passivity.setZero();
-  out.passivity_scale = 1.0;
-  if (M.passivity == Passivity::kOff) {
-    out.energy = out.stored_energy = 0.0;
-    return;
-  }
-  // the null term's spring Kp e (e is across the mechanism, where N(W_A) keeps it), and the
-  // range term's as the last cycle rendered it, its factor times P(W_A) Kp e*
-  double stored = saturated_spring(out.error, M.kp.cwiseProduct(out.error), M.max_force,
-                                   M.max_torque);
-  if (M.under_actuated_term) {
-    stored += d.range_scale *
-              saturated_spring(out.error_star, d.range_spring, M.max_force, M.max_torque);
-  }
-  out.stored_energy = stored;
-  if (d.have_last_torque) {
-    double work = 0.0;
-    for (int i = 0; i < dev.dof(); ++i) work += d.last_torque[i] * (q[i] - d.last_q[i]);
-    d.energy -= work;
-  }
-  // at most the springs' energy and the reserve. No floor: a deficit is paid back before
-  // the range term comes back (with a floor, a released handle walks on: each bit of
-  // damping's refill brings the range term back for a moment)
-  d.energy = std::min(d.energy, stored + M.passivity_max_energy);
-  out.energy = d.energy;
-  if (!M.under_actuated_term) return;
-  const double scale = std::clamp(1.0 + d.energy / M.passivity_fade, 0.0, 1.0);
-  d.range_scale = scale;
-  if (scale >= 1.0) return;
-  out.passivity_scale = scale;
-  out.wrench_passivity = (scale - 1.0) * out.wrench_range;
-  out.status |= status::kPassivity;
-}
-
 // The ramp-in's factor this cycle (out.ramp), one cycle further on.
-void advance_ramp(const ControllerModel& M, ControllerData& d, CycleOutput& out) noexcept {
+void advance_ramp(ControllerData& d, CycleOutput& out) noexcept {
   out.ramp = std::min(1.0, static_cast<double>(d.ramp_count + 1) /
-                               static_cast<double>(M.ramp_cycles));
-  if (d.ramp_count < M.ramp_cycles) ++d.ramp_count;
+                               static_cast<double>(d.ramp_cycles));
+  if (d.ramp_count < d.ramp_cycles) ++d.ramp_count;
   if (out.ramp < 1.0) out.status |= status::kRamping;
 }
 
@@ -414,10 +383,10 @@ void safety(const ControllerModel& M, const Device& dev, ControllerData& d, Vect
   double scale = 1.0;
   // (the square roots only where a limit acts)
   const double fn2 = f.head<3>().squaredNorm(), mn2 = f.tail<3>().squaredNorm();
-  if (exceeds(fn2, M.max_force)) scale = std::min(scale, M.max_force / std::sqrt(fn2));
-  if (exceeds(mn2, M.max_torque)) scale = std::min(scale, M.max_torque / std::sqrt(mn2));
+  if (detail::exceeds(fn2, M.max_force)) scale = std::min(scale, M.max_force / std::sqrt(fn2));
+  if (detail::exceeds(mn2, M.max_torque)) scale = std::min(scale, M.max_torque / std::sqrt(mn2));
   if (scale < 1.0) out.status |= status::kForceClamped;
-  advance_ramp(M, d, out);
+  advance_ramp(d, out);
   f *= scale * out.ramp;
 
   out.torque.noalias() = d.J_R.transpose() * f;  // eq. 8
@@ -494,21 +463,17 @@ void Controller::reset() noexcept {
   data_.unpowered.theta = mechanism_->home();
   data_.first = true;
   data_.ramp_count = 0;
-  data_.energy = 0.0;
-  data_.range_scale = 1.0;
-  data_.have_last_torque = false;
+  data_.ramp_cycles = model_.ramp_cycles;
+  detail::restart_passivity(data_.passivity, true);
   data_.last_t = std::numeric_limits<double>::quiet_NaN();
 }
 
-void Controller::restart_energy() noexcept {
-  data_.energy = 0.0;
-  data_.range_scale = 1.0;
-  data_.have_last_torque = false;
-}
+void Controller::restart_energy() noexcept { detail::restart_passivity(data_.passivity, false); }
 
 void Controller::applied(const double* tau) noexcept {
-  if (!data_.have_last_torque) return;  // nothing booked next cycle (passivity off, a fault)
-  data_.last_torque = Eigen::Map<const JointVector>(tau, device_->dof());
+  // (nothing to book with passivity off or before the tank's first cycle)
+  if (model_.passivity == Passivity::kOff || data_.passivity.cycles == 0) return;
+  data_.passivity.tau_last = Eigen::Map<const JointVector>(tau, device_->dof());
 }
 
 namespace {
@@ -540,7 +505,7 @@ std::uint32_t Controller::step(const Eigen::Ref<const Eigen::VectorXd>& q,
                                double t_s) noexcept {
   if (q.size() != device_->dof() || dq.size() != device_->dof()) {
     begin(device_->dof(), out);
-    fault(*device_, data_, status::kFaultBadSize, out);
+    fault(model_, *device_, data_, status::kFaultBadSize, out);
     out.theta = data_.nearest.theta;
     out.theta_star = data_.unpowered.theta;
     data_.last = out;
@@ -586,7 +551,7 @@ std::uint32_t Controller::place_cycle(const double* q, const double* dq,
 
   if (const std::uint32_t bad = check_input(M, dev, q, dq)) {
     begin(dev.dof(), out);
-    fault(dev, d, bad, out);
+    fault(M, dev, d, bad, out);
     out.theta = d.nearest.theta;
     out.theta_star = d.unpowered.theta;
     out.computation_time_us = 0.0;
@@ -604,6 +569,7 @@ std::uint32_t Controller::place_cycle(const double* q, const double* dq,
   watchdog(M, d, t_s, out);
   device_kinematics(dev, d, q, dq, at_q);
   d.q_cycle = Eigen::Map<const JointVector>(q, dev.dof());
+  d.dq_cycle = Eigen::Map<const JointVector>(dq, dev.dof());
   out.handle_pose = d.handle_pose;
 
   // the two placements (eqs. 18-20, 25): in one closed form where the mechanism has it (the
@@ -632,22 +598,18 @@ std::uint32_t Controller::render_cycle(CycleOutput& out) noexcept {
 
   // eq. 26 (eq. 11 without the range term)
   factorise_first_pass(M, d);
-  null_space_term(M, mech, d, out);
-  if (M.under_actuated_term) range_space_term(M, mech, d, out);
+  const std::uint32_t let_go_null = null_space_term(M, mech, d, out);
+  const std::uint32_t let_go_range = M.under_actuated_term ? range_space_term(M, mech, d, out) : 0u;
   Vector6 f = out.wrench_null + out.wrench_range;
 
-  passivity(M, dev, d, q, out);
+  detail::passivity(M, dev, d.passivity, q, d.v_R, out);
   f += out.wrench_passivity;
   keep_renderable(M, dev, d, f, out);
   safety(M, dev, d, f, out);
-  if (M.passivity != Passivity::kOff) {
-    d.last_q = d.q_cycle;
-    d.last_torque = out.torque;
-    d.have_last_torque = true;
-  }
-  // the joints at a limit after the terms released those pulling away from it
-  out.active = d.nearest.active;
-  out.active_star = M.under_actuated_term ? d.unpowered.active : 0u;
+  detail::hold_torque(M, d.passivity, out.torque);
+  // the joints at a limit, less those the terms let go (their force pulled away from it)
+  out.active = d.nearest.active & ~let_go_null;
+  out.active_star = M.under_actuated_term ? d.unpowered.active & ~let_go_range : 0u;
 
   if (!out.torque.allFinite() || !f.allFinite()) {  // belt and braces: zero, start afresh
     d.nearest.theta = mech.home();
@@ -657,14 +619,14 @@ std::uint32_t Controller::render_cycle(CycleOutput& out) noexcept {
     out.status = informative;
     out.theta = d.nearest.theta;
     out.theta_star = d.unpowered.theta;
-    fault(dev, d, status::kFaultNonFiniteOutput, out);
+    fault(M, dev, d, status::kFaultNonFiniteOutput, out);
   }
   return finish(out);
 }
 
 std::uint32_t Controller::unrendered(CycleOutput& out) noexcept {
   clear_force(device_->dof(), out);
-  advance_ramp(model_, data_, out);  // as safety() advances it
+  advance_ramp(data_, out);  // as safety() advances it
   return finish(out);
 }
 

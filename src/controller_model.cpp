@@ -106,7 +106,11 @@ void resolve_law(const Device& device, const ControllerSettings& s, ControllerMo
 // timing, limits, the placements' iteration caps, passivity
 void resolve_cycle(const Device& device, const ControllerSettings& s, ControllerModel& m) {
   m.period_s = s.period_s;
+  // (the table bounds ramp_time_s to 60 s and period_s from below: the count is exact)
   m.ramp_cycles = std::max(1L, static_cast<long>(std::llround(s.ramp_time_s / s.period_s)));
+  // however short ramp_time_s, the force ramps back over kMinimumFaultRampS after a fault
+  m.fault_ramp_cycles = std::max(
+      m.ramp_cycles, static_cast<long>(std::ceil(kMinimumFaultRampS / s.period_s - 1e-9)));
   m.watchdog_s = s.watchdog_s;
   m.max_force = s.max_force > 0.0 ? std::min(s.max_force, device.max_force()) : device.max_force();
   m.max_torque =
@@ -115,19 +119,30 @@ void resolve_cycle(const Device& device, const ControllerSettings& s, Controller
   m.track_initial.max_iterations = s.max_iterations_initial;
   m.passivity = s.passivity;
   m.passivity_max_energy = s.passivity_max_energy_j;
+  m.passivity_start_energy = s.passivity_start_energy_j;
   m.passivity_fade = s.passivity_fade_j;
+  m.passivity_budget = s.passivity_budget_j;
+  m.passivity_fade_step = std::min(1.0, s.period_s / s.passivity_fade_time_s);
 }
 
-// the plausible q: the device's range widened by the margins
+// the plausible q and dq: the device's range and fastest speeds widened by the margins; the
+// passivity observer's play, one encoder count
 void resolve_range(const Device& device, const ControllerSettings& s, ControllerModel& m) {
   const int n = device.dof();
   m.q_min.resize(n);
   m.q_max.resize(n);
+  m.dq_max.resize(n);
+  m.passivity_play.resize(n);
   for (int i = 0; i < n; ++i) {
-    const double margin =
-        device.joint_type(i) == JointType::kRevolute ? s.range_margin_rad : s.range_margin_m;
+    const bool revolute = device.joint_type(i) == JointType::kRevolute;
+    const double margin = revolute ? s.range_margin_rad : s.range_margin_m;
     m.q_min[i] = device.lower()[i] - margin;
     m.q_max[i] = device.upper()[i] + margin;
+    m.dq_max[i] =
+        device.max_velocity()[i] + (revolute ? s.velocity_margin_rad_s : s.velocity_margin_m_s);
+    // half a count: the observer's displacement can sit between two counts a joint flips
+    // between, within the play of both (docs/theory.md, 8)
+    m.passivity_play[i] = 0.5 * (revolute ? s.passivity_resolution_rad : s.passivity_resolution_m);
   }
 }
 
@@ -166,10 +181,16 @@ Params describe(const ControllerModel& m) {
       .set("max_iterations", m.track.max_iterations)
       .set("max_iterations_initial", m.track_initial.max_iterations)
       .set("passivity", name_of(m.passivity))
+      .set("passivity_start_energy_j", m.passivity_start_energy)
       .set("passivity_max_energy_j", m.passivity_max_energy)
       .set("passivity_fade_j", m.passivity_fade)
+      .set("passivity_budget_j", m.passivity_budget)
+      .set("passivity_fade_step", m.passivity_fade_step)
+      .set("fault_ramp_cycles", ParamValue(static_cast<long long>(m.fault_ramp_cycles)))
       .set_vector("q_min", m.q_min)
       .set_vector("q_max", m.q_max)
+      .set_vector("dq_max", m.dq_max)
+      .set_vector("passivity_play", m.passivity_play)
       .set("renderable", renderable);
 }
 

@@ -73,6 +73,19 @@ Device::Device(std::string name, const std::vector<JointType>& kinds,
   lower_ = to_joint_vector("lower", limits.lower, n, -kInf);
   upper_ = to_joint_vector("upper", limits.upper, n, kInf);
   require_ordered("lower/upper", lower_, upper_);
+  max_velocity_ = to_joint_vector("max_velocity", limits.max_velocity, n, 0.0);
+  for (int i = 0; i < n; ++i) {
+    if (limits.max_velocity.empty()) {
+      max_velocity_[i] = kinds[static_cast<size_t>(i)] == JointType::kRevolute ? kMaxSpeedRevolute
+                                                                               : kMaxSpeedPrismatic;
+    }
+    if (!(max_velocity_[i] > 0.0)) {
+      std::ostringstream os;
+      os << "max_velocity[" << i << "]: expected > 0 [rad/s or m/s] (inf: unchecked), got "
+         << max_velocity_[i];
+      throw std::invalid_argument(os.str());
+    }
+  }
   if (!(limits.max_force > 0.0)) {
     std::ostringstream os;
     os << "max_force: expected > 0 [N], got " << limits.max_force;

@@ -14,6 +14,18 @@ namespace {
 // eigen-solver's rounding of a zero (its backward error is a few eps |W|): they count as 0.
 constexpr double kWeightRoundoff = 64.0 * std::numeric_limits<double>::epsilon();
 
+// The soft rank's band (WeightedProjector::soft_rank): a singular value sigma of A counts
+// with smoothstep((sigma / |A|_F - kSoftRankLow) / (kSoftRankHigh - kSoftRankLow)). Below
+// kSoftRankLow lie the singular values of placements singular up to their solver's accuracy
+// (a LineGuide beyond its reach: 1e-13..1e-6); above kSoftRankHigh those of every pose 1e-2
+// rad or more from a singular one (a Probe pressed 13 um into its plane, stylus square).
+constexpr double kSoftRankLow = 1e-5;
+constexpr double kSoftRankHigh = 1e-3;
+
+// lambda_min(G) / tr(G) above this certifies every singular value of A at least
+// kSoftRankHigh |A|_F (tr(G) = |A|_F^2): the soft rank's factors are all 1
+constexpr double kCertifiedSoft = kSoftRankHigh * kSoftRankHigh;
+
 }  // namespace
 
 // Why a complete orthogonal decomposition (column-pivoted Householder QR, plus the RZ step
@@ -40,6 +52,8 @@ void WeightedProjector::compute(const Jacobian& J, const Vector6& w) noexcept {
 void WeightedProjector::set(const Jacobian& J, const Vector6& w) noexcept {
   rotated_ = false;
   null_ready_ = false;
+  filtered_ = false;
+  soft_checked_ = false;
   m_ = static_cast<int>(J.cols());
   for (int j = 0; j < m_; ++j) J_.col(j) = J.col(j);
   // a projector is mostly refactorised with the same weights (the controller keeps one per
@@ -245,18 +259,27 @@ double weighted_gram(const Eigen::Matrix<double, 6, kMaxDof>& J, const Vector6& 
 // matrix (eigenvalues >= -eps tr by rounding), so det(G) > 1e-11 tr^k / (k - 1)^(k - 1)
 // >> eps^2 tr^k rules out a pair of negative ones: G is positive definite, as the LDL^T
 // of gram_certified_ldl checks, and its determinant has errors of a few eps tr^k
-bool gram_certified_cofactors(const double (&G)[6][6], int k, double tr) noexcept {
-  if (k == 1) return true;
-  if (k == 2) return G[0][0] * G[1][1] - G[1][0] * G[1][0] > 1e-11 * tr * tr;
+// `soft`: lambda_min(G) / tr(G) shown above kCertifiedSoft as well
+bool gram_certified_cofactors(const double (&G)[6][6], int k, double tr, bool& soft) noexcept {
+  if (k == 1) {
+    soft = true;  // lambda_min = tr
+    return true;
+  }
+  if (k == 2) {
+    const double det2 = G[0][0] * G[1][1] - G[1][0] * G[1][0];
+    soft = det2 > kCertifiedSoft * tr * tr;
+    return det2 > 1e-11 * tr * tr;
+  }
   const double det3 = G[0][0] * (G[1][1] * G[2][2] - G[2][1] * G[2][1]) -
                       G[1][0] * (G[1][0] * G[2][2] - G[2][1] * G[2][0]) +
                       G[2][0] * (G[1][0] * G[2][1] - G[1][1] * G[2][0]);
+  soft = 4.0 * det3 > kCertifiedSoft * tr * tr * tr;
   return 4.0 * det3 > 1e-11 * tr * tr * tr;
 }
 
 // det(G / tr) from an LDL^T of G / tr (false where a pivot is not positive), then
 // lambda_min / tr >= det_n (k - 1)^(k - 1) > 1e-11
-bool gram_certified_ldl(const double (&G)[6][6], int k, double tr) noexcept {
+bool gram_certified_ldl(const double (&G)[6][6], int k, double tr, bool& soft) noexcept {
   double L[6][6], D[6], det = 1.0;
   for (int j = 0; j < k; ++j) {
     double d = G[j][j] / tr;
@@ -272,6 +295,7 @@ bool gram_certified_ldl(const double (&G)[6][6], int k, double tr) noexcept {
   }
   double spread = 1.0;
   for (int i = 1; i < k; ++i) spread *= static_cast<double>(k - 1);
+  soft = det * spread > kCertifiedSoft;
   return det * spread > 1e-11;
 }
 
@@ -282,9 +306,11 @@ bool gram_certified_ldl(const double (&G)[6][6], int k, double tr) noexcept {
 // eigenvalues' product is at most that, by AM-GM) above 1e-11 tr(G), i.e. sigma_k(A) >
 // 3e-6 |A|_F, where the QR's cut is 1e-10 |R_00| <= 1e-10 |A|_F: the QR would find rank k
 // (after j < k steps the remaining columns' norms reach sigma_k / sqrt(m)). det(G) from
-// an LDL^T of G / tr(G) (relative errors ~ k eps kappa(G) <= 1e-4 here).
+// an LDL^T of G / tr(G) (relative errors ~ k eps kappa(G) <= 1e-4 here). Above
+// kCertifiedSoft tr(G) (certified_soft_) no singular value lies in the soft rank's band.
 bool WeightedProjector::full_row_rank_certified() const noexcept {
   const int k = support_, m = m_;
+  certified_soft_ = false;
   if (!finite_ || k == 0 || k > m) return false;
   // every entry finite, the zero-weighted rows' too (a factorisation would find 0 * NaN and
   // give NaN results, as documented)
@@ -292,7 +318,8 @@ bool WeightedProjector::full_row_rank_certified() const noexcept {
   double G[6][6];
   const double tr = weighted_gram(J_, s_, m, k, G);
   if (!(tr > 0.0) || !std::isfinite(tr)) return false;  // also NaN
-  return k <= 3 ? gram_certified_cofactors(G, k, tr) : gram_certified_ldl(G, k, tr);
+  return k <= 3 ? gram_certified_cofactors(G, k, tr, certified_soft_)
+                : gram_certified_ldl(G, k, tr, certified_soft_);
 }
 
 void WeightedProjector::factorise() const noexcept {
@@ -319,6 +346,8 @@ int WeightedProjector::start_factorisation() const noexcept {
     n2_[j] = col.squaredNorm();
     perm_[j] = j;
   }
+  frob2_ = 0.0;
+  for (int j = 0; j < m; ++j) frob2_ += n2_[j];
   finite_ = finite_ && (nonfinite.array() == 0.0).all();
   if (!finite_) return 0;
   cut_ = 0.0;
@@ -405,6 +434,62 @@ void WeightedProjector::finish_factorisation() const noexcept {
   null_ready_ = r == 5 && support_ == 6 && s_max_ * tmin <= 16.0 * tmax * s_min_;
 }
 
+// True where every singular value the factorisation kept is at least kSoftRankHigh |A|_F
+// (those it cut are below kSoftRankLow |A|_F): the soft rank's factors are 0 or 1 and the
+// factorisation's formulas are the filtered ones. sigma_min(T) >= 1 / |T^-1|_F.
+bool WeightedProjector::well_conditioned() const noexcept {
+  const int r = rank_;
+  if (!finite_ || r == 0) return true;
+  // T^-1 column by column (back substitution), its squared Frobenius norm
+  double inv[6][6];  // inv[j][i]: row i of column j
+  double norm2 = 0.0;
+  for (int j = 0; j < r; ++j) {
+    for (int i = r - 1; i >= 0; --i) {
+      double t = i == j ? 1.0 : 0.0;
+      for (int k = i + 1; k <= j; ++k) t -= a_(i, k) * inv[j][k];
+      inv[j][i] = i > j ? 0.0 : t / a_(i, i);
+      norm2 += inv[j][i] * inv[j][i];
+    }
+  }
+  return norm2 * kCertifiedSoft * frob2_ <= 1.0;
+}
+
+// A A^T = U diag(sigma^2) U^T (6 x 6, fixed size: no allocation), phi_i of sigma_i / |A|_F.
+void WeightedProjector::filter() const noexcept {
+  Matrix6 G = Matrix6::Zero();
+  for (int j = 0; j < m_; ++j) {
+    const Vector6 a = s_.cwiseProduct(J_.col(j));
+    G.noalias() += a * a.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Matrix6> eig(G);
+  const double frob2 = G.trace();
+  u_ = eig.eigenvectors();
+  soft_rank_ = 0.0;
+  for (int i = 0; i < 6; ++i) {
+    const double lambda = std::max(eig.eigenvalues()[i], 0.0);
+    const double rho = frob2 > 0.0 ? std::sqrt(lambda / frob2) : 0.0;
+    const double t =
+        std::clamp((rho - kSoftRankLow) / (kSoftRankHigh - kSoftRankLow), 0.0, 1.0);
+    phi_[i] = t * t * (3.0 - 2.0 * t);  // smoothstep: C1 in sigma
+    phi_sigma2_[i] = phi_[i] > 0.0 ? phi_[i] / lambda : 0.0;
+    soft_rank_ += phi_[i];
+  }
+  filtered_ = true;
+}
+
+// S (A_phi^+)^T J^T x = S U [diag(phi) U^T S^+ x + diag(phi / sigma^2) U^T A J^T (I - Pi_S) x]
+// (A^T S^+ is J^T on the weighted axes; U^T A = diag(sigma) V^T), in the frame V^T.
+Vector6 WeightedProjector::filtered_range(const Vector6& x) const noexcept {
+  Vector6 g = phi_.cwiseProduct(u_.transpose() * s_inv_.cwiseProduct(x));
+  const Vector6 xf = free_.cwiseProduct(x);
+  if (!xf.isZero(0.0)) {
+    Vector6 ajx = Vector6::Zero();  // A J^T xf = S J (J^T xf)
+    for (int j = 0; j < m_; ++j) ajx += J_.col(j).dot(xf) * J_.col(j);
+    g += phi_sigma2_.cwiseProduct(u_.transpose() * s_.cwiseProduct(ajx));
+  }
+  return s_.cwiseProduct(u_ * g);
+}
+
 Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
   if (!finite_) return Vector6::Constant(std::numeric_limits<double>::quiet_NaN());
   if (rank_ == 0) return Vector6::Zero();
@@ -446,7 +531,33 @@ Vector6 WeightedProjector::range(const Vector6& x_in) const noexcept {
   return rotated_ ? Vector6(V_ * out) : out;
 }
 
-Vector6 WeightedProjector::null(const Vector6& x) const noexcept { return x - range(x); }
+// The soft rank's filter, decided once per factorisation (on the first query that needs it):
+// none where the certification or the factorisation shows every singular value above the
+// band, else the eigen-decomposition of A A^T.
+void WeightedProjector::check_soft() const noexcept {
+  if (soft_checked_) return;
+  soft_checked_ = true;
+  filtered_ = false;
+  if (column_ || (deferred_ && certified_soft_)) return;
+  factorise();
+  if (!well_conditioned()) filter();
+}
+
+Vector6 WeightedProjector::null(const Vector6& x) const noexcept {
+  check_soft();
+  if (!filtered_ || !finite_) return x - range(x);
+  const Vector6 xr = rotated_ ? Vector6(V_.transpose() * x) : x;
+  const Vector6 p = filtered_range(xr);
+  return x - (rotated_ ? Vector6(V_ * p) : p);
+}
+
+Vector6 WeightedProjector::soft_range(const Vector6& x) const noexcept {
+  check_soft();
+  if (!filtered_ || !finite_) return range(x);
+  const Vector6 xr = rotated_ ? Vector6(V_.transpose() * x) : x;
+  const Vector6 p = filtered_range(xr);
+  return rotated_ ? Vector6(V_ * p) : p;
+}
 
 void WeightedProjector::fit(const Vector6& v, JointVector& theta_dot) const noexcept {
   factorise();
@@ -500,9 +611,9 @@ template <typename Weights>
 Matrix6 filter_matrix(const Jacobian& J, const Weights& W, bool range) noexcept {
   WeightedProjector p;
   p.compute(J, W);
-  Matrix6 P;
-  for (int k = 0; k < 6; ++k) P.col(k) = p.range(Vector6::Unit(k));
-  return range ? P : Matrix6(Matrix6::Identity() - P);
+  Matrix6 F;
+  for (int k = 0; k < 6; ++k) F.col(k) = range ? p.range(Vector6::Unit(k)) : p.null(Vector6::Unit(k));
+  return F;
 }
 
 }  // namespace

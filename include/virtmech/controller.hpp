@@ -6,9 +6,16 @@
 // all state the cycle updates (both placements, the ramp counter), allocated once. The
 // cycle is a straight line of named stages over the two (src/controller.cpp):
 //   check_input -> device_kinematics -> place (nearest, un-powered) -> wrench (eq. 26)
-//   -> passivity (energy tank) -> keep_renderable -> safety -> outputs
+//   -> passivity (energy tank, src/passivity.cpp) -> keep_renderable -> safety -> outputs
+//
+// Threads: one Controller (and one MechanismSet) belongs to one thread at a time; its
+// step(), place(), render() and the rest mutate its ControllerData and are not for
+// concurrent calls. Devices, mechanisms and shapes are immutable once built: any number of
+// controllers on any threads may share one (through the shared_ptr they hold), as may
+// several threads read one ControllerModel. docs/theory.md, "Threads".
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -16,6 +23,7 @@
 #include "virtmech/device.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/mechanism.hpp"
+#include "virtmech/passivity.hpp"
 #include "virtmech/settings.hpp"
 #include "virtmech/track.hpp"
 
@@ -29,12 +37,14 @@ constexpr std::uint32_t kForceClamped = 1u << 1;    //!< wrench scaled to the fo
 constexpr std::uint32_t kTorqueClamped = 1u << 2;   //!< torques scaled to the joint limits
 constexpr std::uint32_t kNotConverged = 1u << 3;    //!< a placement hit its iteration cap
 constexpr std::uint32_t kWatchdog = 1u << 4;        //!< cycle gap exceeded the watchdog
-constexpr std::uint32_t kPassivity = 1u << 5;       //!< the energy tank held back the range term
+constexpr std::uint32_t kPassivity = 1u << 5;  //!< the energy tank held back some range term
 constexpr std::uint32_t kSwitching = 1u << 6;  //!< a MechanismSet blends between two members
 constexpr std::uint32_t kFaultNonFiniteInput = 1u << 8;   //!< q or dq not finite
 constexpr std::uint32_t kFaultNonFiniteOutput = 1u << 9;  //!< computation produced NaN/inf
 constexpr std::uint32_t kFaultBadSize = 1u << 10;         //!< q or dq of the wrong length
 constexpr std::uint32_t kFaultOutOfRange = 1u << 11;      //!< q beyond the joint range + margin
+/// dq beyond the device's fastest plausible speed + margin
+constexpr std::uint32_t kFaultImplausibleVelocity = 1u << 12;
 constexpr std::uint32_t kFaultMask = 0xFF00u;
 }  // namespace status
 
@@ -57,6 +67,14 @@ struct ControllerSettings {
 /// its range and the value). The Controller's constructor runs it first.
 void check_settings(const ControllerSettings& settings);
 
+/// The depth over which a joint at a limit takes hold [m]: its lock weight rises from 0 at
+/// the bound to 1 at this depth (a contact's damping builds up with it instead of stepping
+/// in as the tip touches).
+constexpr double kLockDepthM = 1e-4;
+
+/// The shortest force ramp-in after a fault or a watchdog trip [s], whatever ramp_time_s.
+constexpr double kMinimumFaultRampS = 0.05;
+
 /// The validated configuration with every default resolved.
 struct ControllerModel {
   Vector6 kp, kv, w_a, w_e, w_e_star;
@@ -75,15 +93,21 @@ struct ControllerModel {
   bool under_actuated_term = false;  //!< eq. 26's range-space term is evaluated
   ErrorVelocity error_velocity = ErrorVelocity::kRelative;
   double period_s = 1e-3;
-  long ramp_cycles = 1;
+  long ramp_cycles = 1;        //!< the ramp-in after the start [cycles]
+  long fault_ramp_cycles = 1;  //!< the ramp-in after a fault or a watchdog trip [cycles]
   double watchdog_s = 0.0;
   double max_force = kInf, max_torque = kInf;
   TrackOptions track, track_initial;
   std::array<bool, 6> renderable{};  //!< task axes the passive joints never move
   JointVector q_min, q_max;          //!< plausible q: the device's range widened by the margin
+  JointVector dq_max;                //!< plausible |dq|: the device's speeds plus the margin
   Passivity passivity = Passivity::kEnergyTank;
   double passivity_max_energy = 0.001;  //!< [J]
-  double passivity_fade = 5e-5;        //!< [J]
+  double passivity_start_energy = 0.001;  //!< [J]
+  double passivity_fade = 1e-6;         //!< [J]
+  double passivity_budget = 0.0;        //!< [J]
+  double passivity_fade_step = 0.02;    //!< largest change of the range term's factor a cycle
+  JointVector passivity_play;           //!< the observer's play per joint [rad or m]
 };
 
 /// Everything one cycle reports. Fixed-capacity members: copying never allocates.
@@ -106,17 +130,21 @@ struct CycleOutput {
   std::uint32_t active = 0, active_star = 0;
   double ramp = 0.0;              //!< ramp-in factor applied [0, 1]
   double limit_scale = 1.0;       //!< factor applied by force and torque limits (0, 1]
-  /// Energy tank: its level, the energy the rendering has absorbed (zero at the start minus
-  /// the motors' work since, held at most at the springs' energy plus
-  /// passivity_max_energy_j) [J]; 0 with passivity off
+  /// Energy tank: its level, the energy the rendering has absorbed: at the start the
+  /// springs' energy up to passivity_start_energy_j (after a fault or a watchdog trip 0),
+  /// minus the motors' work since as the observer books it (two cycles late), held at most
+  /// at the springs' energy plus passivity_max_energy_j [J]; 0 with passivity off
   double energy = 0.0;
   /// What the law's springs hold [J]: Kp e at the nearest placement and, with eq. 26, the
   /// range term's P(W_A) Kp e* times the factor the tank applied to it the cycle before,
   /// each saturating at the wrench limits (docs/theory.md)
   double stored_energy = 0.0;
-  /// The part of the range term the tank held back, (scale - 1) wrench_range
+  /// The part of the range term the passivity layer held back, (scale l - 1) wrench_range,
+  /// l = min(1, max_force / |force|, max_torque / |moment|) of wrench_range (with passivity
+  /// on, the range term is limited to the wrench limits before its factor applies)
   Vector6 wrench_passivity = Vector6::Zero();
-  double passivity_scale = 1.0;  //!< the range term's factor, in [0, 1]
+  /// The range term's factor, in [0, 1]; it changes by at most passivity_fade_step a cycle
+  double passivity_scale = 1.0;
   std::uint32_t status = status::kOk;
   /// this cycle's own computation time [µs] (the processor's time-stamp counter where it is
   /// invariant, else steady_clock)
@@ -137,6 +165,12 @@ struct Placement {
   Vector6 error = Vector6::Zero();
   Jacobian J_free;         //!< J_V without the columns of the active joints
   std::uint32_t active = 0;  //!< joints held at a limit that acts
+  /// Each active joint's lock weight in [0, 1]: how far the cost presses it past its bound
+  /// (|J_i^T W e| |J_i|_U / (J_i^T W J_i), a depth [m]) over kLockDepthM, at most 1: a limit
+  /// takes hold continuously as the handle presses into it (docs/theory.md, 6)
+  std::array<double, kMaxDof> lock{};
+  std::uint32_t partial = 0;  //!< active joints with a lock weight below 1
+  double partial_lock = 1.0;  //!< the least lock weight of those (1 where none)
   /// the mechanism's constraint wrench at theta for J_free (Mechanism::constraint_wrench):
   /// J_free^T wrench = 0, J_free of rank 5; has_wrench false where it has none
   bool has_wrench = false;
@@ -150,24 +184,23 @@ struct ControllerData {
   Pose handle_pose = Pose::Identity();
   Jacobian J_R;     //!< device Jacobian at q
   Vector6 v_R;      //!< handle twist J_R dq
+  /// What the null-space term's soft rank renders beyond N(W_A) with the rank's hard cut,
+  /// (P - P_phi)(Kp e + Kv e_dot): the range term leaves it out (docs/theory.md, 6).
+  Vector6 null_soft_excess = Vector6::Zero();
   // one projector per weighting, so that each keeps its weights' square roots
   WeightedProjector rate;         //!< sqrt(W_e) J_V at the nearest placement: its rate
   WeightedProjector rate_star;    //!< sqrt(W_e*) J_V at the un-powered placement: its rate
   WeightedProjector projector_a;  //!< P(W_A) / N(W_A) at the nearest placement
   WeightedProjector projector;    //!< P(W_A) at the un-powered placement; the renderable part
+  WeightedProjector rate_partial; //!< a placement's rate with its partly locked joints free
   bool first = true;            //!< next cycle starts placements afresh
   long ramp_count = 0;
-  // energy tank: the energy absorbed [J], the range term's spring P(W_A) Kp e*, and the
-  // torque and q of the last good cycle
-  Vector6 range_spring = Vector6::Zero();
-  double range_scale = 1.0;  // the range term's factor the last cycle applied
-  double energy = 0.0;
-  bool have_last_torque = false;
-  JointVector last_q, last_torque;
+  long ramp_cycles = 1;         //!< the ramp-in in progress: its length [cycles]
+  PassivityState passivity;     //!< the energy tank and its observer (src/passivity.cpp)
   double last_t = std::numeric_limits<double>::quiet_NaN();
   CycleOutput last;
-  // the cycle between place() and render(): its joint values and its start
-  JointVector q_cycle;
+  // the cycle between place() and render(): its joint values and rates, and its start
+  JointVector q_cycle, dq_cycle;
   std::uint64_t cycle_start = 0;  // (the cycle clock's ticks)
 };
 
@@ -178,6 +211,9 @@ struct DeviceKinematics {
   Jacobian J;
 };
 
+/// The controller of one mechanism on one device. Not for concurrent use: one thread steps
+/// it (a controller per thread); the device and mechanism it holds are immutable and may be
+/// shared with controllers on other threads.
 class Controller {
  public:
   /// Validates settings and allocates every buffer; throws std::invalid_argument.
@@ -219,12 +255,12 @@ class Controller {
 
   /// Restarts: placements from the mechanism's home, ramp-in from zero.
   void reset() noexcept;
-  /// Empties the energy tank and forgets the last torque, as after a fault: for a cycle
-  /// whose torque was not applied (a MechanismSet's members not rendered).
+  /// Restarts the energy tank and forgets its observer's history, as after a fault: for a
+  /// cycle whose torque was not applied (a MechanismSet's members not rendered).
   void restart_energy() noexcept;
   /// The torque the motors really hold after the last step, when it is not the one that
   /// step returned (a MechanismSet blending two members): the energy tank books the work of
-  /// this torque over the next cycle instead. tau: dof() entries. Does not allocate.
+  /// this torque over its interval instead. tau: dof() entries. Does not allocate.
   void applied(const double* tau) noexcept;
 
   const Device& device() const noexcept { return *device_; }

@@ -18,14 +18,27 @@ struct DeviceLimits {
   std::vector<double> upper;
   double max_force = kInf;           //!< largest force the handle may receive [N]
   double max_torque = kInf;          //!< largest moment the handle may receive [N·m]
+  /// Fastest plausible joint speed, per joint [rad/s or m/s] (inf: unchecked); empty: the
+  /// defaults kMaxSpeedRevolute and kMaxSpeedPrismatic by joint kind. A controller faults on
+  /// a dq beyond it plus its margin.
+  std::vector<double> max_velocity;
   double stiffness = 500.0;          //!< default translational Kp [N/m]
   double damping = 1.0;              //!< default translational Kv [N·s/m]
 };
 
+/// Default fastest plausible speed of a revolute joint [rad/s]: a hand's fastest strokes
+/// turn a desktop device's joints at up to about 10 rad/s, a falling stylus swings its
+/// gimbal at up to about 12 rad/s (measured on the simulated Omni).
+constexpr double kMaxSpeedRevolute = 25.0;
+/// Default fastest plausible speed of a prismatic joint [m/s] (a hand's fastest strokes).
+constexpr double kMaxSpeedPrismatic = 2.5;
+
 /// A haptic device (interface): joint count and kinds, which joints have motors, the
 /// limits the safety layer enforces, and the handle pose with its geometric Jacobian with
 /// respect to the device's own joint coordinates. A new device (a parallel one, a
-/// driver with its own conventions) is one subclass overriding forward_jacobian.
+/// driver with its own conventions) is one subclass overriding forward_jacobian. A device is
+/// immutable once built (every query is const and writes nothing): controllers on any
+/// number of threads may share one.
 class Device {
  public:
   virtual ~Device() = default;
@@ -42,6 +55,8 @@ class Device {
   const JointVector& lower() const noexcept { return lower_; }
   const JointVector& upper() const noexcept { return upper_; }
   const JointVector& home() const noexcept { return home_; }
+  /// Fastest plausible joint speeds [rad/s or m/s] (DeviceLimits::max_velocity).
+  const JointVector& max_velocity() const noexcept { return max_velocity_; }
   double max_force() const noexcept { return max_force_; }
   double max_torque() const noexcept { return max_torque_; }
   double stiffness() const noexcept { return stiffness_; }
@@ -66,7 +81,7 @@ class Device {
   std::array<JointType, kMaxDof> kinds_{};
   std::array<bool, kMaxDof> actuated_{};
   int num_actuated_ = 0;
-  JointVector torque_limit_, lower_, upper_, home_;
+  JointVector torque_limit_, lower_, upper_, home_, max_velocity_;
   double max_force_ = kInf, max_torque_ = kInf, stiffness_ = 500.0, damping_ = 1.0;
 };
 

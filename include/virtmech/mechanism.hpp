@@ -31,7 +31,9 @@ struct PlacementIO {
   Vector6* e;
 };
 
-/// A virtual mechanism (interface).
+/// A virtual mechanism (interface). A mechanism and its shapes are immutable once built
+/// (every query is const and writes nothing): controllers on any number of threads may
+/// share one; a subclass keeps that so (no mutable caches).
 class Mechanism {
  public:
   virtual ~Mechanism() = default;

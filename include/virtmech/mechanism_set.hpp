@@ -57,6 +57,9 @@ struct MechanismSetOutput {
   bool switching = false;
 };
 
+/// Several mechanisms on one device, one of them rendered at a time. Not for concurrent use:
+/// one thread steps a set (a set per thread); its members' devices and mechanisms are
+/// immutable and may be shared with controllers and sets on other threads.
 class MechanismSet {
  public:
   /// capacity in 1..kMaxSetMembers; settings checked (throws std::invalid_argument).

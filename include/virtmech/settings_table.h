@@ -48,8 +48,10 @@
        "how e_dot is formed: relative (the handle's velocity the mechanism does not follow) or " \
        "handle (eq. 10, -J_R dq)")                                                               \
   REAL(period_s, 1e-3, 0.0, 1.0, VM_RANGE_ABOVE_MIN, "s", "servo period")                        \
-  REAL(ramp_time_s, 0.25, 0.0, 60.0, VM_RANGE_CLOSED, "s",                                       \
-       "the force's ramp-in after the start, a fault or a watchdog trip")                        \
+  REAL(ramp_time_s, 0.25, 0.0, 60.0, VM_RANGE_ABOVE_MIN, "s",                                    \
+       "the force's ramp-in after the start, a fault or a watchdog trip (one period or less: "   \
+       "none at the start; after a fault or a watchdog trip the ramp lasts at least 50 ms "      \
+       "whatever this says)")                                                                    \
   REAL(watchdog_s, 0.0, 0.0, 60.0, VM_RANGE_CLOSED, "s",                                         \
        "the longest gap allowed between the time stamps t of step(q, dq, t); a longer gap, or "  \
        "time running backwards, restarts the ramp-in and empties the energy tank (status "       \
@@ -72,14 +74,39 @@
   REAL(range_margin_m, 0.005, 0.0, 1.0, VM_RANGE_CLOSED, "m",                                    \
        "how far q may leave a prismatic joint's range before the cycle faults "                  \
        "(fault_out_of_range)")                                                                   \
+  REAL(velocity_margin_rad_s, 5.0, 0.0, 1e4, VM_RANGE_CLOSED, "rad/s",                           \
+       "how far |dq| may exceed a revolute joint's fastest plausible speed (the device's) "       \
+       "before the cycle faults (fault_implausible_velocity)")                                   \
+  REAL(velocity_margin_m_s, 0.5, 0.0, 1e3, VM_RANGE_CLOSED, "m/s",                               \
+       "how far |dq| may exceed a prismatic joint's fastest plausible speed (the device's) "      \
+       "before the cycle faults (fault_implausible_velocity)")                                   \
   ENUM(passivity, Passivity, 1,                                                                  \
        "energy_tank: eq. 26's range term only as long as the user has put in the energy it "     \
-       "gives; off: the laws as written (the paper's behaviour)")                                \
+       "gives, faded in and out continuously; off: the laws as written (the paper's "            \
+       "behaviour)")                                                                             \
+  REAL(passivity_start_energy_j, 0.001, 0.0, VM_INF, VM_RANGE_INF_ALLOWED, "J",                  \
+       "the most of what the law's springs hold at the start that the tank takes as its level "  \
+       "(a tip that starts above its plane may be pulled down; inf: all of it)")                 \
   REAL(passivity_max_energy_j, 0.001, 0.0, VM_INF, VM_RANGE_INF_ALLOWED, "J",                    \
        "the most energy the tank holds beyond what the law's springs store (inf: no cap)")       \
-  REAL(passivity_fade_j, 5e-5, 0.0, 1000.0, VM_RANGE_ABOVE_MIN, "J",                             \
-       "the range term fades out as the tank falls from 0 to minus this: the most the motors "   \
-       "give beyond what the user put in")
+  REAL(passivity_fade_j, 1e-6, 0.0, 1000.0, VM_RANGE_ABOVE_MIN, "J",                             \
+       "the range term's factor aims at 1 while the tank is at least -passivity_budget_j and "   \
+       "falls linearly to 0 as it goes on down by this much")                                    \
+  REAL(passivity_budget_j, 0.0, 0.0, 1000.0, VM_RANGE_CLOSED, "J",                               \
+       "the most net work the motors may do beyond what the user put in before the range term "  \
+       "fades: 0 for a passive rendering; a guide the user turns into (a stylus through a "      \
+       "port) needs the motors to carry the hand a little")                                      \
+  REAL(passivity_fade_time_s, 0.025, 0.0, 60.0, VM_RANGE_ABOVE_MIN, "s",                         \
+       "the range term's factor moves toward its aim so that its force changes by at most "      \
+       "max_force period_s / passivity_fade_time_s a cycle (and its moment likewise): the "      \
+       "force never steps")                                                                      \
+  REAL(passivity_resolution_rad, (2.0 * 3.14159265358979323846 / 15000.0), 0.0, 0.1,             \
+       VM_RANGE_CLOSED, "rad",                                                                   \
+       "a revolute joint's position resolution, one encoder count: the passivity observer's "    \
+       "displacement is held within half of it of the reading (default: the simulated Omni's); " \
+       "0: the readings as they are")                                                            \
+  REAL(passivity_resolution_m, 1e-5, 0.0, 0.01, VM_RANGE_CLOSED, "m",                            \
+       "a prismatic joint's position resolution (as passivity_resolution_rad)")
 
 /* A mechanism set's settings (virtmech::MechanismSetSettings, vm_set_settings). */
 #define VM_SET_SETTINGS(REAL)                                                                    \
@@ -109,8 +136,9 @@
 #define VM_PASSIVITIES(X)                                                                        \
   X(kEnergyTank, ENERGY_TANK, 1, "energy_tank",                                                  \
     "an energy tank filled by a passivity observer at the motors' port (Hannaford & Ryu "        \
-    "2002): eq. 26's range term is rendered only as long as the user has put in the energy "     \
-    "it gives")                                                                                  \
+    "2002) that does not book the encoders' quantisation nor one-cycle glitches: eq. 26's "      \
+    "range term is rendered only as long as the user has put in the energy it gives (plus "      \
+    "passivity_budget_j), and fades out and back in continuously")                               \
   X(kOff, OFF, 0, "off", "the laws as written: the motors may do net work (the paper's Fig. 11)")
 
 #endif /* VIRTMECH_SETTINGS_TABLE_H_ */

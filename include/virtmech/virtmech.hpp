@@ -10,6 +10,7 @@
 #include "virtmech/kinematic_chain.hpp"
 #include "virtmech/mechanism.hpp"
 #include "virtmech/mechanism_set.hpp"
+#include "virtmech/passivity.hpp"
 #include "virtmech/se3.hpp"
 #include "virtmech/track.hpp"
 #include "virtmech/types.hpp"

@@ -298,7 +298,8 @@ const std::vector<std::pair<std::uint32_t, const char*>>& status_bits() {
       {status::kFaultNonFiniteInput, "fault_nonfinite_input"},
       {status::kFaultNonFiniteOutput, "fault_nonfinite_output"},
       {status::kFaultBadSize, "fault_bad_size"},
-      {status::kFaultOutOfRange, "fault_out_of_range"}};
+      {status::kFaultOutOfRange, "fault_out_of_range"},
+      {status::kFaultImplausibleVelocity, "fault_implausible_velocity"}};
   return bits;
 }
 

@@ -119,7 +119,10 @@ void expose_controller(nb::module_& m) {
       "once; then step() once per servo cycle. Its settings: a ControllerSettings and/or its "
       "properties as keywords (CONTROLLER_SETTINGS: defaults and ranges). Gains and weights "
       "are 6-vectors [x y z rx ry rz]; unset ones take the defaults of docs/theory.md "
-      "(derived from the device's actuation and the length scale L).");
+      "(derived from the device's actuation and the length scale L).\n\nThreads: one "
+      "controller belongs to one thread at a time (step() and the rest are not for concurrent "
+      "calls); its device and mechanism are immutable and may be shared by controllers on "
+      "other threads.");
   nb::class_<Controller>(m, "Controller", "The virtual-mechanism controller: one step() per servo cycle.")
       .def("__init__", [](Controller* self, std::shared_ptr<Device> device,
                           std::shared_ptr<Mechanism> mechanism, nb::handle settings, nb::kwargs kw) {
@@ -186,7 +189,8 @@ void expose_controller(nb::module_& m) {
       "Several mechanisms on one device, at most one rendered per cycle: a member engages within "
       "snap_distance [m] and lets go beyond release_distance (hysteresis; a unilateral member's "
       "distance is its tip's height, 0 in contact); switching moves the force at most "
-      "force_rate [N/s] and moment_rate [N m/s].")
+      "force_rate [N/s] and moment_rate [N m/s]. One set belongs to one thread at a time; its "
+      "members' devices and mechanisms may be shared across threads.")
       .def("__init__", [](MechanismSet* self, std::shared_ptr<Device> device, int capacity,
                           nb::handle settings, nb::kwargs kw) {
             new (self) MechanismSet(std::move(device), capacity,

@@ -23,6 +23,9 @@ void expose_devices(nb::module_& m) {
                    "Joint torque limits (dof,) [N·m or N]; 0 for passive joints.")
       .def_prop_ro("max_force", &Device::max_force, "[N]")
       .def_prop_ro("max_torque", &Device::max_torque, "[N·m]")
+      .def_prop_ro("max_velocity", [](const Device& d) { return Eigen::VectorXd(d.max_velocity()); },
+                   "Fastest plausible joint speeds (dof,) [rad/s or m/s]: a faster dq is a "
+                   "fault (beyond the controller's velocity margin).")
       .def_prop_ro("stiffness", &Device::stiffness, "Default translational Kp [N/m].")
       .def_prop_ro("damping", &Device::damping, "Default translational Kv [N·s/m].")
       .def("to_dict", [](const Device& self) { return to_python(describe(self)); },

@@ -7,6 +7,9 @@ from ._core import (
     STATUS_FAULT_BAD_SIZE as FAULT_BAD_SIZE,
 )
 from ._core import (
+    STATUS_FAULT_IMPLAUSIBLE_VELOCITY as FAULT_IMPLAUSIBLE_VELOCITY,
+)
+from ._core import (
     STATUS_FAULT_MASK as FAULT_MASK,
 )
 from ._core import (
@@ -46,6 +49,7 @@ from ._core import status_names as names
 
 __all__ = [
     "FAULT_BAD_SIZE",
+    "FAULT_IMPLAUSIBLE_VELOCITY",
     "FAULT_MASK",
     "FAULT_OUT_OF_RANGE",
     "FAULT_NONFINITE_INPUT",

@@ -116,15 +116,38 @@ inline void joint_state(int k, JointVector& q, JointVector& dq, const Device* de
   }
 }
 
+/// Joint state of cycle k over (95 % of) the device's whole range [rad or m; per s]: the
+/// handle far off the mechanism, through its singular and saturated poses and its limits.
+inline void sweep_state(const Device& d, int k, JointVector& q, JointVector& dq) {
+  const double t = k * 1e-3;
+  for (int i = 0; i < q.size(); ++i) {
+    const double lo = std::isfinite(d.lower()[i]) ? d.lower()[i] : -1.0;
+    const double hi = std::isfinite(d.upper()[i]) ? d.upper()[i] : 1.0;
+    const double mid = 0.5 * (lo + hi), half = 0.475 * (hi - lo), w = 1.3 + 0.4 * i;
+    q[i] = mid + half * std::sin(w * t + i);
+    dq[i] = half * w * std::cos(w * t + i);
+  }
+}
+
+/// The cycle loop's joint state at cycle k of `cycles`: the slow wandering, for the second
+/// eighth a sweep over the whole range, a third in a velocity the device cannot make (a
+/// fault) and 100 cycles later a one-cycle glitch of 0.01 rad.
+inline void cycle_state(const Device& d, int k, int cycles, JointVector& q, JointVector& dq) {
+  joint_state(k, q, dq, &d);
+  if (k >= cycles / 8 && k < cycles / 4) sweep_state(d, k, q, dq);
+  if (k == cycles / 3) dq[0] = 1e300;
+  if (k == cycles / 3 + 100) q[q.size() > 2 ? 2 : 0] += 0.01;
+}
+
 /// Runs `cycles` servo cycles of c, from its first; q, dq, out are the caller's so that
 /// nothing here allocates. Even cycles use the pointer overload, odd ones the checked one.
-/// Half-way one cycle has a non-finite input (a fault), three quarters in the clock jumps
-/// (the watchdog) and the controller is reset.
+/// The joints follow cycle_state; half-way one cycle has a non-finite input (a fault),
+/// three quarters in the clock jumps (the watchdog) and the controller is reset.
 inline void run_cycles(Controller& c, int cycles, JointVector& q, JointVector& dq,
                        CycleOutput& out) {
   const Eigen::Index n = q.size();
   for (int k = 0; k < cycles; ++k) {
-    joint_state(k, q, dq, &c.device());
+    cycle_state(c.device(), k, cycles, q, dq);
     double t = k * 1e-3;
     if (k == cycles / 2) q[0] = std::numeric_limits<double>::quiet_NaN();
     if (k >= 3 * cycles / 4) t += 1.0;
@@ -162,7 +185,7 @@ inline MechanismSet make_set() {
 inline void run_set_cycles(MechanismSet& set, int cycles, JointVector& q, JointVector& dq,
                            MechanismSetOutput& out) {
   for (int k = 0; k < cycles; ++k) {
-    joint_state(k, q, dq);
+    cycle_state(set.device(), k, cycles, q, dq);
     double t = k * 1e-3;
     if (k == cycles / 2) q[0] = std::numeric_limits<double>::quiet_NaN();
     if (k >= 3 * cycles / 4) t += 1.0;

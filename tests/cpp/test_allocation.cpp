@@ -678,11 +678,11 @@ TEST(CApi, DiagnosticsMatchTheCppCycle) {
   mech.length = 0.05;
   vm_settings settings;
   vm_settings_init(&settings);
-  settings.ramp_time_s = 0.0;
+  settings.ramp_time_s = 1e-3;  // one period: no ramp-in
   vm_controller* c = nullptr;
   ASSERT_EQ(vm_controller_create(&dev, &mech, &settings, &c, nullptr, 0), VM_OK);
   ControllerSettings cs;
-  cs.ramp_time_s = 0.0;
+  cs.ramp_time_s = 1e-3;  // one period: no ramp-in
   Controller ref(std::make_shared<PhantomOmni>(),
                  std::make_shared<PlanarArm>(Eigen::Vector3d(0, 0, -0.1), Eigen::Vector3d::UnitZ(),
                                              0.05, Eigen::Vector3d::UnitX()),

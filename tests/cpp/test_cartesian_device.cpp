@@ -218,7 +218,7 @@ TEST(CartesianDevice, ControllerTorqueIsTheHandleWrench) {
     auto probe = std::make_shared<Probe>(Eigen::Vector3d(0, 0, -0.04), Eigen::Vector3d::UnitZ(),
                                          0.05, Eigen::Vector3d::Zero());
     ControllerSettings s;
-    s.ramp_time_s = 0.0;
+    s.ramp_time_s = 1e-3;  // one cycle: full force at once
     Controller c(d, probe, s);
     JointVector q = JointVector::Zero(d->dof()), dq = JointVector::Zero(d->dof());
     q.head<3>() << 0.01, -0.02, -0.005;  // the tip 15 mm inside the plane

@@ -397,7 +397,7 @@ TEST(OpenHaptics, RefusesADeviceThatIsNotTheModel) {
   auto full = std::make_shared<SerialDevice>("PhantomOmni", omni.chain(),
                                              DeviceLimits{std::vector<bool>(6, true),
                                                           std::vector<double>(6, 0.4),
-                                                          {}, {}, 3.3, kInf, 1200, 1},
+                                                          {}, {}, 3.3, kInf, {}, 1200, 1},
                                              omni.coupling(), omni.coupling_offset());
   struct Case {
     const char* config;
@@ -535,7 +535,7 @@ TEST(OpenHaptics, GimbalTorqueOnlyWhereTheModelDrivesTheGimbal) {
   auto full = std::make_shared<SerialDevice>("PhantomOmni", omni.chain(),
                                              DeviceLimits{std::vector<bool>(6, true),
                                                           std::vector<double>(6, 0.4),
-                                                          {}, {}, 3.3, kInf, 1200, 1},
+                                                          {}, {}, 3.3, kInf, {}, 1200, 1},
                                              omni.coupling(), omni.coupling_offset());
   Standin standin("output_dof 6\nmodel_type PHANTOM Omni\n");
   OpenHapticsDriver d(standin_library());

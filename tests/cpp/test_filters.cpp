@@ -63,6 +63,41 @@ Dyn svd_reference(const Dyn& S, const Dyn& J, int r) {
   return S * U * s.cwiseInverse().asDiagonal() * V.transpose() * J.transpose();
 }
 
+// N_phi x = x - S (A_phi^+)^T J^T x, A = S J, A_phi^+ = V diag(phi_i / sigma_i) U^T with the
+// soft rank's factors phi_i = smoothstep((sigma_i / |A|_F - 1e-5) / (1e-3 - 1e-5)), by an SVD
+// of A: an independent algorithm. `smallest`: the least sigma_i / |A|_F of the rank's.
+Vector6 soft_null_reference(const Dyn& S, const Dyn& J, const Vector6& x, double& smallest) {
+  smallest = 1.0;
+  const Dyn A = S * J;
+  const double frob = A.norm();
+  if (A.cols() == 0 || !(frob > 0.0)) return x;
+  Eigen::JacobiSVD<Dyn> svd(A, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd s = svd.singularValues();
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(s.size());
+  for (Eigen::Index i = 0; i < s.size(); ++i) {
+    const double t = std::clamp((s(i) / frob - 1e-5) / (1e-3 - 1e-5), 0.0, 1.0);
+    const double phi = t * t * (3.0 - 2.0 * t);
+    f(i) = phi > 0.0 ? phi / s(i) : 0.0;
+    if (s(i) > kPinvTolerance * s(0)) smallest = std::min(smallest, s(i) / frob);
+  }
+  const Vector6 p = S * svd.matrixU() * f.asDiagonal() * svd.matrixV().transpose() *
+                    J.transpose() * x;
+  return x - p;
+}
+
+// null(x) against the reference: x - range(x) exactly where every singular value is well
+// above the soft rank's band, else to rounding relative to the filtered projection's size.
+void check_null(const WeightedProjector& p, const Dyn& S, const Dyn& J, const Vector6& x,
+                const std::string& what) {
+  double smallest = 1.0;
+  const Vector6 ref = soft_null_reference(S, J, x, smallest);
+  if (smallest >= 1e-2) {
+    EXPECT_EQ(p.null(x), x - p.range(x)) << what;
+  } else {
+    EXPECT_LE((p.null(x) - ref).norm(), 1e-7 * (x.norm() + (x - ref).norm())) << what;
+  }
+}
+
 struct Case {
   Jacobian J;
   Vector6 w;
@@ -112,7 +147,7 @@ int check_properties(const WeightedProjector& p, const Jacobian& J, const Matrix
     if (W.row(i).isZero(0.0)) EXPECT_EQ(P.row(i).cwiseAbs().maxCoeff(), 0.0) << what << i;
   }
   const Vector6 x = Vector6::LinSpaced(6, -1.0, 1.5);
-  EXPECT_EQ(p.null(x), x - p.range(x)) << what;
+  check_null(p, S, J, x, what);
   const int r = svd_rank(S * J);
   if (r >= 0) {
     EXPECT_EQ(p.rank(), r) << what;
@@ -140,7 +175,9 @@ TEST(FilterProjector, PropertiesOnRandomCases) {
     ambiguous += check_properties(p, c.J, W, S, "trial " + std::to_string(trial)) < 0;
     // the free functions are this code
     EXPECT_EQ(range_filter(c.J, c.w), range_matrix(p));
-    EXPECT_EQ(null_filter(c.J, c.w), Matrix6::Identity() - range_matrix(p));
+    Matrix6 N;
+    for (int k = 0; k < 6; ++k) N.col(k) = p.null(Vector6::Unit(k));
+    EXPECT_EQ(null_filter(c.J, c.w), N);
     EXPECT_EQ(range_filter(c.J, W), range_matrix(p));
   }
   EXPECT_LT(ambiguous, 20);
@@ -221,9 +258,11 @@ TEST(FilterProjector, FullRowRankOnTheWeightedAxesKeepsTheirWrenchesExactly) {
     for (int j = 0; j < m; ++j)
       for (int i = 0; i < 6; ++i) J(i, j) = g(rng);
     // rank 2 on the weighted rows: exactly, or to 1e-13 (below the rank cut, where no
-    // certificate may claim rank 3); 1e-7 is rank 3 again (found by the QR)
+    // certificate may claim rank 3); 1e-7 is rank 3 again (found by the QR) but below the
+    // soft rank's band: the null-space filter keeps the direction (a placement singular to
+    // its solver's accuracy renders the pull it cannot follow)
     const int kind = trial % 5;
-    const bool deficient = kind < 2;
+    const bool deficient = kind < 2, nearly = kind == 2;
     if (kind < 3) {
       const double off = kind == 0 ? 0.0 : kind == 1 ? 1e-13 : 1e-7;
       J.row(2) = 0.5 * J.row(0) - 2.0 * J.row(1);
@@ -234,8 +273,9 @@ TEST(FilterProjector, FullRowRankOnTheWeightedAxesKeepsTheirWrenchesExactly) {
     WeightedProjector p;
     p.compute(J, w);
     ASSERT_EQ(p.rank(), deficient ? 2 : 3) << trial;
-    if (deficient) {
+    if (deficient || nearly) {
       EXPECT_GT(p.null(x).norm(), 1e-6 * x.norm()) << trial;
+      if (nearly) EXPECT_EQ(p.range(x), x) << trial;  // (P keeps the factorisation's rank)
     } else {
       EXPECT_EQ(p.range(x), x) << trial;
       EXPECT_EQ(p.null(x), Vector6::Zero()) << trial;

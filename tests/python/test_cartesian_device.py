@@ -89,7 +89,7 @@ def test_the_omega6_renders_no_torque_and_the_sigma7_its_handle_wrench():
     q6 = np.array([0.01, -0.02, -0.005, 0.2, -0.3, 0.4])
     for model in ("omega.6", "sigma.7"):
         d = vm.CartesianDevice(model)
-        c = vm.Controller(d, probe, ramp_time_s=0.0)
+        c = vm.Controller(d, probe, ramp_time_s=1e-3)  # one cycle: full force at once
         out = c.step(q6, np.zeros(6), 0.0)
         w = d.wrench(q6, out.torque)
         assert np.linalg.norm(w[:3]) > 1.0

@@ -183,15 +183,18 @@ def test_the_hd_api_is_used_as_the_sdk_requires(held_run):
 
 
 def assert_ramps_in(cols, log) -> None:
-    """The log's ramp-in factor: 0.25 s from the first tick and from every watchdog trip, 1/250
-    more each tick, then 1 (the ticks after the stop have none)."""
+    """The log's ramp-in factor: 0.25 s from the first tick, from every watchdog trip and
+    from the tick after a fault (a replayed jump between poses is an implausible velocity),
+    1/250 more each tick, then 1 (the ticks after the stop have none, a fault's tick 0)."""
     ramp = log[:, cols.index("ramp")]
     flags = log[:, cols.index("flags")].astype(int)
+    faulted = (log[:, cols.index("status")].astype(int) & vm.status.FAULT_MASK) != 0
     k = np.arange(len(ramp))
-    start = np.maximum.accumulate(np.where(flags & 2, k, 0))
+    start = np.maximum.accumulate(np.where(flags & 2, k, np.where(faulted, k + 1, 0)))
     expected = np.minimum(1.0, (k - start + 1) / 250.0)
-    stepped = (flags & ZERO_MASK) == 0
+    stepped = ((flags & ZERO_MASK) == 0) & ~faulted
     np.testing.assert_allclose(ramp[stepped], expected[stepped], rtol=1e-12)
+    assert (ramp[faulted] == 0.0).all()
 
 
 def test_the_force_ramps_in(held_run):

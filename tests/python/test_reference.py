@@ -34,7 +34,7 @@ def test_core_gives_the_reference_cycle_at_convergence(name, thorough):
     # torque ramp): the core's placements (closed forms) against the reference's global one;
     # 12 states, or 100 when thorough (marked slow, run by scripts/test.sh after the suite)
     rng = np.random.default_rng(sum(map(ord, name)) + (1 if thorough else 0))
-    c = vm.Controller(vm.PhantomOmni(), MECHANISMS[name](), ramp_time_s=0.0, passivity="off")
+    c = vm.Controller(vm.PhantomOmni(), MECHANISMS[name](), ramp_time_s=1e-3, passivity="off")
     device, mechanism = ref.case_models(name)
     npc = ref.NpController(c, device, mechanism, global_search=True)
     largest = 0.0

@@ -389,7 +389,7 @@ def surface_contact(kind: str, T: np.ndarray, depth: float):
 
 
 def render(device, q, mechanism, dq=None):
-    c = vm.Controller(device, mechanism, ramp_time_s=0.0)
+    c = vm.Controller(device, mechanism, ramp_time_s=1e-3)
     dq = np.zeros(device.dof) if dq is None else dq
     return c.step(q, dq)
 

@@ -51,7 +51,7 @@ def test_a_changed_document_is_told_apart(tmp_path):
 
 def test_every_controller_setting_is_a_scenario_key_with_the_structs_default():
     names = [r["name"] for r in vm.CONTROLLER_SETTINGS]
-    assert len(names) == 21 and len(set(names)) == 21
+    assert len(names) == 28 and len(set(names)) == 28
     props = sc.json_schema()["properties"]["controller"]["properties"]
     assert sorted(props) == sorted(names)
     data = sc.loads(SCENARIO)["controller"]

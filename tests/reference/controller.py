@@ -10,6 +10,22 @@ from .kinematics import NpChain, NpDevice, gram_pinv, pose_error
 from .placement import place
 
 
+def soft_null(J: np.ndarray, w: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """N(W) F with the soft rank (docs/theory.md, 5): F - S (A_phi^+)^T J^T F, A = S J, S =
+    sqrt(W), A_phi^+ = V diag(phi_i / sigma_i) U^T, phi_i = smoothstep((sigma_i / |A|_F -
+    1e-5) / (1e-3 - 1e-5)); every phi_i is 1 away from a singular pose (then N = I - P)."""
+    S = np.sqrt(w)
+    A = S[:, None] * J
+    frob = np.linalg.norm(A)
+    if not frob > 0:
+        return F.copy()
+    U, sigma, Vt = np.linalg.svd(A, full_matrices=False)
+    t = np.clip((sigma / frob - 1e-5) / (1e-3 - 1e-5), 0.0, 1.0)
+    phi = t * t * (3.0 - 2.0 * t)
+    g = np.divide(phi, sigma, out=np.zeros_like(sigma), where=phi > 0)
+    return F - S * (U @ (g * (Vt @ (J.T @ F))))
+
+
 class NpController:
     """The servo cycle (docs/theory.md: placements, eq. 26's filters, the projection onto
     what the device renders, the safety layer) in NumPy, configured from a core
@@ -61,8 +77,11 @@ class NpController:
         F = self.kp * e + self.kv * self._rate(J_V, self.w_e, v_R)
         WJ_A = self.w_a[:, None] * J_V
         H_Ap, rank_v = gram_pinv(J_V, self.w_a)
-        f = F - WJ_A @ (H_Ap @ (J_V.T @ F))
+        f = soft_null(J_V, self.w_a, F)
         if self.under_actuated:
+            # the range term leaves out the share of its directions the soft rank's null
+            # filter renders (docs/theory.md, 5): together, eq. 26 with the hard cut
+            f = F - WJ_A @ (H_Ap @ (J_V.T @ F))
             if self.first:
                 self.theta_star = self.theta.copy()
             self.theta_star, converged = place(mech, T_R, self.w_e_star, self.theta_star,
