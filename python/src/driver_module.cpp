@@ -109,11 +109,8 @@ void start(DeviceDriver& d, Renderer& r, double period_s, double velocity_cutoff
   d.start(r, s);
 }
 
-}  // namespace
-
-NB_MODULE(_driver, m) {
-  m.doc() = "virtmech's device drivers (C++); internal: use virtmech.drive.";
-
+// the driver errors as Python exceptions (RuntimeError's subclasses)
+void expose_errors(nb::module_& m) {
   nb::object base = nb::borrow(PyExc_RuntimeError);
   const char* names[3] = {"LibraryError", "DeviceMismatch", "DeviceFault"};
   const char* docs[3] = {
@@ -132,7 +129,10 @@ NB_MODULE(_driver, m) {
       PyErr_SetString(g_errors[static_cast<int>(e.kind())], e.what());
     }
   });
+}
 
+// the velocity filter's gain, the tick record's layout and the driver's flags
+void expose_records(nb::module_& m) {
   m.def("velocity_alpha", &VelocityFilter::alpha_for_cutoff, "period_s"_a, "cutoff_hz"_a,
         "The velocity filter's gain: T / (T + 1 / (2 pi f_c)); 1 where cutoff_hz <= 0.");
   m.def("record_width", [] { return kTickRecordWidth; }, "Numbers per tick record.");
@@ -155,7 +155,9 @@ NB_MODULE(_driver, m) {
   flags["bad_reading"] = driver_flag::kBadReading;
   m.attr("FLAGS") = flags;
   m.attr("ZERO_MASK") = driver_flag::kZeroMask;
+}
 
+void expose_device_driver(nb::module_& m) {
   const ServoSettings defaults;
   nb::class_<DeviceDriver>(m, "DeviceDriver",
                            "A device driver (its vendor's SDK loaded at run time).")
@@ -227,7 +229,9 @@ NB_MODULE(_driver, m) {
            "True while running when no tick has come for stall_s seconds.")
       .def("describe_error", &DeviceDriver::describe_error, "code"_a,
            "A device error code as the user reads it, e.g. 'HD_COMM_ERROR (0x0302): ...'.");
+}
 
+void expose_vendor_drivers(nb::module_& m) {
   nb::class_<OpenHapticsDriver, DeviceDriver>(
       m, "OpenHapticsDriver", "The OpenHaptics HD driver (libHD loaded at run time).")
       .def(
@@ -258,4 +262,14 @@ NB_MODULE(_driver, m) {
                    "True while the servo thread runs at SCHED_FIFO.")
       .def_prop_ro("priority_note", &ForceDimensionDriver::priority_note,
                    "Why the servo thread does not run at SCHED_FIFO ('' where it does).");
+}
+
+}  // namespace
+
+NB_MODULE(_driver, m) {
+  m.doc() = "virtmech's device drivers (C++); internal: use virtmech.drive.";
+  expose_errors(m);
+  expose_records(m);
+  expose_device_driver(m);
+  expose_vendor_drivers(m);
 }

@@ -53,9 +53,7 @@ nb::object step(Renderer& self, nb::handle q, nb::handle dq, double t, nb::handl
 #define VM_POSE(Type, member, doc) \
   def_prop_ro(#member, [](const Type& o) { return Eigen::Matrix4d(o.member.matrix()); }, doc)
 
-}  // namespace
-
-void expose_controller(nb::module_& m) {
+void expose_cycle_output(nb::module_& m) {
   nb::class_<CycleOutput>(m, "CycleOutput", "Everything one controller cycle reports.")
       .def(nb::init<>(), "An empty output, to be filled by Controller.step(..., out=...).")
       .VM_VECTOR(CycleOutput, torque, "Joint torques (n,) [N·m or N]; exactly 0 on passive joints.")
@@ -111,7 +109,9 @@ void expose_controller(nb::module_& m) {
                    "The names of the status bits set, e.g. ['ramping'] while the force ramps in.")
       .def_prop_ro("fault", [](const CycleOutput& o) { return (o.status & status::kFaultMask) != 0; },
                    "True when a fault bit is set (status & 0xFF00): the torque is zero.");
+}
 
+void expose_controller_class(nb::module_& m) {
   const SettingsDoc cdoc = settings_doc(
       controller_setting_infos(),
       "self, device: DeviceBase, mechanism: Mechanism, settings: ControllerSettings | None = None",
@@ -152,7 +152,9 @@ void expose_controller(nb::module_& m) {
       .def_prop_ro("model", [](const Controller& c) { return to_python(describe(c.model()), false); },
                    "The resolved settings (every default filled in).")
       .def_prop_ro("last", [](const Controller& c) { return c.last(); }, "The last cycle's output.");
+}
 
+void expose_set_output(nb::module_& m) {
   nb::class_<MechanismSetOutput>(m, "MechanismSetOutput", "Everything one cycle of a MechanismSet reports.")
       .def(nb::init<>())
       .def_ro("cycle", &MechanismSetOutput::cycle,
@@ -178,7 +180,9 @@ void expose_controller(nb::module_& m) {
                    "Status bits of the rendered member's cycle (virtmech.status).")
       .def_prop_ro("status_names", [](const MechanismSetOutput& o) { return status_names(o.cycle.status); },
                    "The names of the status bits set (virtmech.status).");
+}
 
+void expose_mechanism_set(nb::module_& m) {
   const SettingsDoc sdoc = settings_doc(
       set_setting_infos(),
       "self, device: DeviceBase, capacity: int = 4, settings: MechanismSetSettings | None = None",
@@ -218,6 +222,15 @@ void expose_controller(nb::module_& m) {
             }
             return std::const_pointer_cast<Mechanism>(s.member(i).mechanism_ptr());
           }, "i"_a, "The i-th member's mechanism.");
+}
+
+}  // namespace
+
+void expose_controller(nb::module_& m) {
+  expose_cycle_output(m);
+  expose_controller_class(m);
+  expose_set_output(m);
+  expose_mechanism_set(m);
 }
 
 }  // namespace vmpy

@@ -10,7 +10,9 @@ using namespace nb::literals;
 template <class T>
 void def_kinematics(nb::class_<T>& cls);  // expose_mechanisms.cpp
 
-void expose_devices(nb::module_& m) {
+namespace {
+
+void expose_device_base(nb::module_& m) {
   nb::class_<Device> dev(m, "DeviceBase", "A haptic device (interface): kinematics, actuation and limits.");
   def_kinematics(dev);
   dev.def_prop_ro("name", &Device::name)
@@ -30,7 +32,9 @@ void expose_devices(nb::module_& m) {
       .def_prop_ro("damping", &Device::damping, "Default translational Kv [N·s/m].")
       .def("to_dict", [](const Device& self) { return to_python(describe(self)); },
            "The device's description ('type' first) as a JSON-ready dict (its kind's).");
+}
 
+void expose_serial_device(nb::module_& m) {
   nb::class_<SerialDevice, Device>(
       m, "Device",
       "A serial-chain device (C++ SerialDevice) with any actuation mask; every device shares "
@@ -80,7 +84,9 @@ void expose_devices(nb::module_& m) {
                    "C (dof, dof) of the joint map s = C q + c0 from device to chain coordinates.")
       .def_prop_ro("coupling_offset", [](const SerialDevice& d) { return Eigen::VectorXd(d.coupling_offset()); },
                    "c0 (dof,) of the joint map s = C q + c0.");
+}
 
+void expose_omni_and_planar3r(nb::module_& m) {
   const DeviceKind& omni_kind = *registry().device("PhantomOmni");
   nb::class_<PhantomOmni, SerialDevice> omni(m, "PhantomOmni", omni_kind.doc.c_str());
   def_kind<PhantomOmni>(omni, omni_kind.params, "PhantomOmni", [](Params p) {
@@ -98,7 +104,9 @@ void expose_devices(nb::module_& m) {
           "link1, link2 [m]; base (4, 4); torque_limit [N·m]; max_force [N].")
       .def_prop_ro("link1", &Planar3R::link1)
       .def_prop_ro("link2", &Planar3R::link2);
+}
 
+void expose_cartesian_device(nb::module_& m) {
   const DeviceKind& cartesian_kind = *registry().device("CartesianDevice");
   nb::class_<CartesianDevice, SerialDevice> cartesian(m, "CartesianDevice",
                                                        cartesian_kind.doc.c_str());
@@ -154,6 +162,15 @@ void expose_devices(nb::module_& m) {
           "The handle wrench (6,) [N; N·m] whose coordinate torques are tau: J^T w = tau.");
   cartesian.attr("MODELS") = nb::module_::import_("builtins").attr("tuple")(
       nb::cast(cartesian_model_names()));
+}
+
+}  // namespace
+
+void expose_devices(nb::module_& m) {
+  expose_device_base(m);
+  expose_serial_device(m);
+  expose_omni_and_planar3r(m);
+  expose_cartesian_device(m);
 }
 
 }  // namespace vmpy

@@ -47,10 +47,7 @@ nb::class_<T, Base> def_shape(nb::module_& m, const char* name) {
   return cls;
 }
 
-}  // namespace
-
-void expose_geometry(nb::module_& m) {
-  m.attr("MAX_NURBS_DEGREE") = kMaxNurbsDegree;
+void expose_curve(nb::module_& m) {
   nb::class_<Curve>(m, "Curve", "A parametric curve C(u) (base class).")
       .def("to_dict", [](const Curve& c) { return to_python(describe(c)); },
            "The curve's parameters ('type' first) as a JSON-ready dict (its kind's).")
@@ -85,9 +82,11 @@ void expose_geometry(nb::module_& m) {
             }
             return nb::make_tuple(u, points);
           }, "X"_a, "(u (n,), points (n, 3)): closest_point for each row of X (n, 3), in one call.");
+}
 
-  nb::class_<Surface>(m, "Surface", "A parametric surface S(u, v) (base class).")
-      .def("to_dict", [](const Surface& s) { return to_python(describe(s)); },
+nb::class_<Surface> expose_surface(nb::module_& m) {
+  nb::class_<Surface> cls(m, "Surface", "A parametric surface S(u, v) (base class).");
+  cls.def("to_dict", [](const Surface& s) { return to_python(describe(s)); },
            "The surface's parameters ('type' first) as a JSON-ready dict (its kind's).")
       .def_prop_ro("lower", &Surface::lower, "Lower parameter bounds (u, v) (may be -inf).")
       .def_prop_ro("upper", &Surface::upper, "Upper parameter bounds (u, v) (may be inf).")
@@ -112,8 +111,13 @@ void expose_geometry(nb::module_& m) {
             d["mean"] = c.mean;
             d["gaussian"] = c.gaussian;
             return d;
-          }, "u"_a, "v"_a, "{'mean', 'gaussian'}: curvatures with respect to normal() [1/m, 1/m^2].")
-      .def("closest_point", [](const Surface& s, nb::handle p) {
+          }, "u"_a, "v"_a, "{'mean', 'gaussian'}: curvatures with respect to normal() [1/m, 1/m^2].");
+  return cls;
+}
+
+// the surface's closest points: global, local from a start within bounds, many at once
+void def_surface_queries(nb::class_<Surface>& cls) {
+  cls.def("closest_point", [](const Surface& s, nb::handle p) {
             Eigen::Vector3d point;
             const Eigen::Vector2d uv = s.closest_point(vector_arg("p", p, 3), point);
             return nb::make_tuple(uv, point);
@@ -155,7 +159,15 @@ void expose_geometry(nb::module_& m) {
           }, "X"_a,
           "(parameters (n, 2), points (n, 3), normals (n, 3)): closest_point for each row of X "
           "(n, 3), and the unit normal there, in one call.");
+}
 
+}  // namespace
+
+void expose_geometry(nb::module_& m) {
+  m.attr("MAX_NURBS_DEGREE") = kMaxNurbsDegree;
+  expose_curve(m);
+  nb::class_<Surface> surface = expose_surface(m);
+  def_surface_queries(surface);
   def_shape<NurbsCurve, Curve>(m, "NurbsCurve");
   def_shape<NurbsSurface, Surface>(m, "NurbsSurface");
   def_shape<Sphere, Surface>(m, "Sphere").def_prop_ro("e1", &Sphere::e1).def_prop_ro("e2", &Sphere::e2);

@@ -12,9 +12,7 @@ struct PlacementResult {
   TrackResult result;
 };
 
-}  // namespace
-
-void expose_math(nb::module_& m) {
+void expose_rotations_and_filters(nb::module_& m) {
   m.def("pose_error", [](nb::handle a, nb::handle b) {
         return Vector6(pose_error(pose_arg("T_a", a), pose_arg("T_b", b)));
       }, "T_a"_a, "T_b"_a,
@@ -43,7 +41,9 @@ void expose_math(nb::module_& m) {
         "Range-space filter P(W) = W J (J^T W J)^+ J^T (6, 6) (eq. 5). J (6, n); W a (6,) "
         "diagonal or a (6, 6) symmetric positive semi-definite matrix.");
   m.def("null_filter", filter(false), "J"_a, "W"_a, "Null-space filter N(W) = I - P(W) (eq. 9).");
+}
 
+void expose_placement(nb::module_& m) {
   m.def("reach", [](const Device& device, nb::handle target, nb::handle seeds, double length_scale,
                     int max_iterations) {
         std::vector<JointVector> s;
@@ -102,6 +102,13 @@ void expose_math(nb::module_& m) {
       "position and in rotation) unless closed_form=False, else weighted Gauss-Newton. Returns "
       ".theta, .iterations (0: closed form), .residual, .converged, .active (joints held at a "
       "limit).");
+}
+
+}  // namespace
+
+void expose_math(nb::module_& m) {
+  expose_rotations_and_filters(m);
+  expose_placement(m);
 }
 
 }  // namespace vmpy

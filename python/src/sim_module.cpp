@@ -92,13 +92,8 @@ struct PyServoLoop {
   ServoLoop loop;
 };
 
-}  // namespace
-
-NB_MODULE(_sim, m) {
-  m.doc() = "virtmech's simulation loop (C++, MuJoCo's C API); internal: use virtmech.sim.run.";
-  m.attr("MUJOCO_VERSION") = mjVERSION_HEADER;  // the MuJoCo headers it was built with
-  m.def("mujoco_library_version", &mj_version, "mj_version() of the MuJoCo library loaded.");
-
+// the log's columns and the layouts of a hand-plan row and a log row
+void expose_layouts(nb::module_& m) {
   nb::list table;  // the log's columns (log_table.hpp)
   for (const LogField& f : log_fields()) {
     nb::dict row;
@@ -128,7 +123,9 @@ NB_MODULE(_sim, m) {
 #define VM_LOG_MEMBER(field, width, names, units, origin) log.def_rw(#field, &LogLayout::field);
   VM_LOG_TABLE(VM_LOG_MEMBER)
 #undef VM_LOG_MEMBER
+}
 
+void expose_loop(nb::module_& m) {
   nb::class_<LoopSettings>(m, "LoopSettings", "How the device sits in the MuJoCo model, and the simulated driver.")
       .def(nb::init<>())
       .def_rw("coupling_inv", &LoopSettings::coupling_inv, "Cinv (n, n): device joints q = Cinv (qpos - c0).")
@@ -177,4 +174,14 @@ NB_MODULE(_sim, m) {
                    "wall time in the controller's (or set's) step since construction [s]")
       .def("run", &PyServoLoop::run, "k0"_a, "plan"_a, "noise"_a, "dropout"_a, "log"_a.noconvert(),
            "Runs plan.shape[0] control cycles from cycle k0, writing one log row each.");
+}
+
+}  // namespace
+
+NB_MODULE(_sim, m) {
+  m.doc() = "virtmech's simulation loop (C++, MuJoCo's C API); internal: use virtmech.sim.run.";
+  m.attr("MUJOCO_VERSION") = mjVERSION_HEADER;  // the MuJoCo headers it was built with
+  m.def("mujoco_library_version", &mj_version, "mj_version() of the MuJoCo library loaded.");
+  expose_layouts(m);
+  expose_loop(m);
 }
