@@ -22,8 +22,9 @@
 #include <utility>
 #include <vector>
 
-// the C allocator is interposed on glibc, unless a sanitizer owns it
-#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__)
+// the C allocator is interposed on glibc, unless a sanitizer owns it (AddressSanitizer,
+// ThreadSanitizer: its runtime allocates before it can trace an interposed malloc)
+#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
 #define VM_INTERPOSE_MALLOC 1
 #include <malloc.h>
 #endif
