@@ -38,6 +38,33 @@ def handle_path() -> sc.Scenario:
     return sc.validate(raw, source="test_quality_kinds")
 
 
+CHAIN = """name = "chain"
+duration_s = 0.5
+[device]
+type = "PhantomOmni"
+[mechanism]
+type = "SerialChain"
+[[mechanism.joints]]
+type = "prismatic"
+axis = [1.0, 0.0, 0.0]
+[[mechanism.joints]]
+type = "revolute"
+axis = [0.0, 0.0, 1.0]
+"""
+
+
+def test_a_kind_without_a_distance_measure_is_refused_naming_the_key(tmp_path, capsys):
+    from virtmech.cli import main
+
+    src = tmp_path / "chain.toml"
+    src.write_text(CHAIN)
+    out = tmp_path / "out"
+    assert main(["quality", str(src), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "mechanism.type 'SerialChain': quality measures" in err
+    assert "Traceback" not in err and not out.exists()  # nothing written
+
+
 def test_the_measured_kinds_are_those_with_a_distance_measure():
     measured = {k["name"] for k in vm.kinds("mechanism") if k["distance"]}
     assert set(Q.QUALITY_MECHANISMS) == measured
