@@ -184,9 +184,11 @@ struct StylusObjective {
 /// reached by Newton's method on R x S^2 with exact second derivatives (C'' included) from
 /// (s, u) as given (where the Hessian is not positive definite, the saddle-free step with a
 /// backtracking line search; steps capped at a tenth of the stylus and 0.2 rad). The roll
-/// about the stylus drops out as for a line. Returns false (s and u then undefined) where s
-/// would leave the curve's bounds (a stop: the active set is Gauss-Newton's) or no full
-/// Newton step at rounding level ends 12 steps; the caller then runs Gauss-Newton.
+/// about the stylus drops out as for a line. Within the curve's bounds by projected Newton:
+/// a step is cut at the first bound it meets, and a parameter at a bound that the descent
+/// pushes out is held there (the minimum may lie on a stop). Returns false (s and u then
+/// undefined) where no full Newton step at rounding level ends 12 steps, or no step
+/// descends; the caller then runs Gauss-Newton.
 bool curve_stylus_newton(const Curve& curve, const StylusObjective& objective, double& s,
                          Eigen::Vector3d& u) noexcept;
 

@@ -130,16 +130,33 @@ JointVector placement_start(const ControllerModel& M, const Mechanism& mech, con
 void placed(const Mechanism& mech, const Vector6& W, bool first, const JointVector& theta,
             Placement& p) noexcept;
 
-// Places the mechanism for the handle pose with weights W (eqs. 18-20), warm-started, and
-// records the active set: joints held at a limit are locked (their columns leave J_free).
+// Places the mechanism for the handle pose with weights W (eqs. 18-20), warm-started (or
+// from `seeded`, a first cycle's seed), and records the active set: joints held at a limit
+// are locked (their columns leave J_free).
 void place(const ControllerModel& M, const Mechanism& mech, const Pose& target,
-           const Vector6& W, bool first, Placement& p) noexcept {
+           const Vector6& W, bool first, Placement& p,
+           const JointVector* seeded = nullptr) noexcept {
   const TrackOptions& opts = first ? M.track_initial : M.track;
-  const JointVector theta0 = placement_start(M, mech, target, W, first, p);
+  const JointVector theta0 =
+      seeded ? JointVector(seeded->cwiseMax(mech.lower()).cwiseMin(mech.upper()))
+             : placement_start(M, mech, target, W, first, p);
   JointVector theta;
   p.result = detail::track(mech, target, opts, PlacementIO{&W, &theta0, &theta, &p.pose, &p.J,
                                                             &p.error});
   placed(mech, W, first, theta, p);
+}
+
+// Both placements of a first cycle: seeded together where the mechanism shares their cost
+// (Mechanism::seed_pair), else each by seed(), the un-powered one's from the nearest's
+// converged placement.
+void place_first_pair(const ControllerModel& M, const Mechanism& mech,
+                      ControllerData& d) noexcept {
+  JointVector a = d.nearest.theta, b = d.nearest.theta;
+  const bool both = mech.seed_pair(d.handle_pose, M.w_e_effective, M.w_e_star_effective, a, b);
+  virtmech::place(M, mech, d.handle_pose, M.w_e_effective, true, d.nearest, both ? &a : nullptr);
+  if (!both) d.unpowered.theta = d.nearest.theta;
+  virtmech::place(M, mech, d.handle_pose, M.w_e_star_effective, true, d.unpowered,
+                  both ? &b : nullptr);
 }
 
 // Both placements of a cycle after its first in one closed form (Mechanism::place_pair),
@@ -574,11 +591,12 @@ std::uint32_t Controller::place_cycle(const double* q, const double* dq,
 
   // the two placements (eqs. 18-20, 25): in one closed form where the mechanism has it (the
   // first cycle's un-powered placement starts from the nearest, so that one in turn)
-  if (!(M.under_actuated_term && !d.first &&
-        virtmech::place_pair(M, mech, d.handle_pose, d.nearest, d.unpowered))) {
+  if (M.under_actuated_term && d.first) {
+    place_first_pair(M, mech, d);
+  } else if (!(M.under_actuated_term &&
+               virtmech::place_pair(M, mech, d.handle_pose, d.nearest, d.unpowered))) {
     virtmech::place(M, mech, d.handle_pose, M.w_e_effective, d.first, d.nearest);
     if (M.under_actuated_term) {
-      if (d.first) d.unpowered.theta = d.nearest.theta;
       virtmech::place(M, mech, d.handle_pose, M.w_e_star_effective, d.first, d.unpowered);
     }
   }

@@ -194,12 +194,16 @@ double positive_length(const std::string& name, double length) {
 // (an under-actuated device's nearest placement), a stylus along the position error is a
 // stationary point of the cost that is not its least (tilting reaches the handle), and
 // Gauss-Newton, which sees no curvature, would stay: start tilted a little instead.
+bool positions_only(const Vector6& w, double length) noexcept {
+  const double positions = w.head<3>().minCoeff();
+  const double rotations = w.tail<3>().maxCoeff() / (length * length);
+  return rotations < 1e-3 * positions;
+}
+
 void tilt_if_positions_only(const Vector6& w, double length, JointVector& theta,
                             int wrist) noexcept {
   constexpr double kTilt = 0.1;  // [rad]
-  const double positions = w.head<3>().minCoeff();
-  const double rotations = w.tail<3>().maxCoeff() / (length * length);
-  if (rotations < 1e-3 * positions) theta[wrist + 1] += kTilt;
+  if (positions_only(w, length)) theta[wrist + 1] += kTilt;
 }
 
 // the tip a handle pose points to: `length` along its stylus (local z)
@@ -259,20 +263,103 @@ bool SurfaceProbe::constraint_wrench(const double* x, const Pose& T, const Jacob
 }
 
 void SurfaceProbe::seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept {
-  const Eigen::Vector3d tip = tip_of(target, length_);
   Eigen::Vector3d point;
-  const Eigen::Vector2d uv = surface_->closest_point(tip, point);
+  const Eigen::Vector2d uv = surface_->closest_point(tip_of(target, length_), point);
+  seed_from(target, w, uv, point, theta);
+}
+
+bool SurfaceProbe::seed_pair(const Pose& target, const Vector6& w_a, const Vector6& w_b,
+                             JointVector& a, JointVector& b) const noexcept {
+  Eigen::Vector3d point;
+  const Eigen::Vector2d uv = surface_->closest_point(tip_of(target, length_), point);
+  seed_from(target, w_a, uv, point, a);
+  seed_from(target, w_b, uv, point, b);
+  return true;
+}
+
+// seed() from the tip's global closest point, at uv_tip
+void SurfaceProbe::seed_from(const Pose& target, const Vector6& w, const Eigen::Vector2d& uv_tip,
+                             const Eigen::Vector3d& point, JointVector& theta) const noexcept {
+  const Eigen::Vector3d tip = tip_of(target, length_);
+  Eigen::Vector2d uv = uv_tip;
+  SurfaceDerivatives d;
+  surface_->derivatives(uv[0], uv[1], 1, d);
+  Eigen::Matrix3d B;
+  surface_basis(*surface_, uv[0], uv[1], d, B);
+  const int wrist = unilateral_ ? 3 : 2;
+  Eigen::Matrix3d R = target.linear();
+  double lift = std::max(0.0, B.col(2).dot(tip - point));
+  if (positions_only(w, length_) && reach_seed(target, d, B, uv, R, lift)) {
+    surface_->derivatives(uv[0], uv[1], 1, d);
+    surface_basis(*surface_, uv[0], uv[1], d, B);
+  }
   theta[0] = uv[0];
   theta[1] = uv[1];
-  SurfaceDerivatives d;
-  surface_->derivatives(uv[0], uv[1], 2, d);
-  SurfaceFrame f;
-  surface_frame(*surface_, uv[0], uv[1], d, f);
-  const int wrist = unilateral_ ? 3 : 2;
-  if (unilateral_) theta[2] = std::max(0.0, f.B.col(2).dot(tip - point));
-  theta.segment<3>(wrist) =
-      wrist_angles(f.B, target.linear(), Eigen::Vector3d(theta.segment<3>(wrist)));
-  tilt_if_positions_only(w, length_, theta, wrist);
+  if (unilateral_) theta[2] = lift;
+  theta.segment<3>(wrist) = wrist_angles(B, R, Eigen::Vector3d(theta.segment<3>(wrist)));
+}
+
+// A nearest placement's seed (positions only): the placements that put the handle exactly
+// where it is form a circle of tips, where the stylus of length L reaches the surface from
+// the handle, and the least of them is the one whose stylus is nearest the handle's (the
+// rotation term, however small, decides). Over the tangent plane at a point S of the
+// surface, with normal n and the handle at height h above the plane: the circle's centre
+// (the handle's foot on the plane), its radius sqrt(L^2 - h^2), and the tip the centre
+// moved against the stylus's tangential part (where the handle is farther than L, the
+// centre itself: the stylus along the normal). The parameters from that step by least
+// squares, within the bounds; the pass repeated from the point reached (from the closest
+// point to the handle's own tip first), at most four times or until a pass moves the tip
+// less than 1e-4 L; R the handle's orientation turned least to the stylus reaching the
+// handle from there. Starting there, Newton's method converges in a few steps, where a
+// start at the handle's own stylus (a stationary point of the cost: the error along the
+// stylus) had to be tilted and crept along the valley, its tip moving at most a tenth of
+// the stylus a step. False where no pass moves the parameters.
+bool SurfaceProbe::reach_seed(const Pose& target, const SurfaceDerivatives& d0,
+                              const Eigen::Matrix3d& B0, Eigen::Vector2d& uv, Eigen::Matrix3d& R,
+                              double& lift) const noexcept {
+  constexpr int kPasses = 4;
+  const double L = length_;
+  const Eigen::Vector3d& p = target.translation();
+  const Eigen::Vector3d u_R = -target.linear().col(2);
+  const Eigen::Vector2d lo(lower()[0], lower()[1]), hi(upper()[0], upper()[1]);
+  SurfaceDerivatives d = d0;
+  Eigen::Matrix3d B = B0;
+  bool moved = false;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    if (pass > 0) {
+      surface_->derivatives(uv[0], uv[1], 1, d);
+      surface_basis(*surface_, uv[0], uv[1], d, B);
+    }
+    const Eigen::Vector3d n = B.col(2);
+    const Eigen::Vector3d rel = p - d(0, 0);
+    const double h = n.dot(rel);
+    Eigen::Vector3d step = rel - h * n;  // to the circle's centre
+    if (std::abs(h) < L) {
+      Eigen::Vector3d side = u_R - n.dot(u_R) * n;
+      const double sn = side.norm();
+      side = sn > 1e-6 ? Eigen::Vector3d(side / sn) : Eigen::Vector3d(B.col(0));
+      step -= std::sqrt(L * L - h * h) * side;
+      lift = 0.0;
+    } else {
+      lift = unilateral_ ? std::max(0.0, h - L) : 0.0;
+    }
+    Eigen::Matrix<double, 3, 2> D;
+    D << d(1, 0), d(0, 1);
+    const Eigen::Vector2d duv = (D.transpose() * D).ldlt().solve(D.transpose() * step);
+    if (!duv.allFinite()) break;
+    const Eigen::Vector2d next = (uv + duv).cwiseMax(lo).cwiseMin(hi);
+    if (next == uv) break;
+    uv = next;
+    moved = true;
+    if ((D * duv).norm() < 1e-4 * L) break;  // (the next pass would move it by its square)
+  }
+  if (!moved) return false;
+  const Eigen::Vector3d to_handle = p - surface_->evaluate(uv[0], uv[1]);
+  const double reach = to_handle.norm();
+  if (!(reach > 1e-9 * L)) return true;
+  Eigen::Vector3d turn;
+  R = detail::turn_stylus(target.linear(), to_handle / reach, turn);
+  return true;
 }
 
 bool SurfaceProbe::place(const Pose& target, const Vector6& w, const JointVector& start,

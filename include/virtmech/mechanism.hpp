@@ -107,6 +107,17 @@ class Mechanism {
     (void)target, (void)w, (void)theta;
   }
 
+  /// Optional: both seeds of a first cycle at once, the nearest placement's (weights w_a)
+  /// into a and the un-powered one's (w_b) into b, each as seed() would give it, where the
+  /// two share a costly part (a SurfaceProbe's global closest point); a and b hold the last
+  /// placement. False (the default, nothing written) where the controller is to call seed()
+  /// for each instead (the un-powered one's then from the nearest's converged placement).
+  virtual bool seed_pair(const Pose& target, const Vector6& w_a, const Vector6& w_b,
+                         JointVector& a, JointVector& b) const noexcept {
+    (void)target, (void)w_a, (void)w_b, (void)a, (void)b;
+    return false;
+  }
+
  protected:
   /// Validates and stores the joint description; throws std::invalid_argument naming the
   /// bad parameter. `home` is moved into the limits.
@@ -302,10 +313,15 @@ class SurfaceProbe final : public Mechanism {
   bool unilateral() const noexcept { return unilateral_; }
   void forward_jacobian(const double* x, Pose& T, Jacobian& J) const noexcept override;
   /// The tip target (the handle's point `length` along its stylus) projected onto the
-  /// surface; the wrist angles of the handle's orientation there (tilted a little where w
-  /// weighs positions only: with the stylus exactly along the error the position-only
-  /// cost is stationary but not least, and Gauss-Newton would not leave it).
+  /// surface; the wrist angles of the handle's orientation there. Where w weighs positions
+  /// only (a nearest placement): the tip moved, over that point's tangent plane, to where
+  /// the stylus reaches the surface from the handle, nearest the handle's stylus, and the
+  /// wrist turned to it (with the stylus along the error the position-only cost is
+  /// stationary but not least, and Gauss-Newton would not leave it).
   void seed(const Pose& target, const Vector6& w, JointVector& theta) const noexcept override;
+  /// Both seeds from one global closest point.
+  bool seed_pair(const Pose& target, const Vector6& w_a, const Vector6& w_b, JointVector& a,
+                 JointVector& b) const noexcept override;
   /// With weights isotropic per block. On a Sphere: the weighted optimum in closed form
   /// (the stylus turns in the plane of the handle's stylus and the centre-to-handle
   /// direction, one angle; docs/theory.md, section 4). On every other surface: with the
@@ -330,6 +346,10 @@ class SurfaceProbe final : public Mechanism {
                         JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept;
   bool place_lifted(const Pose& target, const JointVector& start, Eigen::Vector2d& uv,
                     JointVector& theta, Pose& T, Jacobian& J, Vector6& e) const noexcept;
+  void seed_from(const Pose& target, const Vector6& w, const Eigen::Vector2d& uv_tip,
+                 const Eigen::Vector3d& point, JointVector& theta) const noexcept;
+  bool reach_seed(const Pose& target, const SurfaceDerivatives& d, const Eigen::Matrix3d& B,
+                  Eigen::Vector2d& uv, Eigen::Matrix3d& R, double& lift) const noexcept;
 
   std::shared_ptr<const Surface> surface_;
   const Sphere* sphere_ = nullptr;  // surface_ when it is a Sphere

@@ -222,25 +222,82 @@ class StylusNewton {
     bool accepted = false;
     for (int k = 0; k < 30 && !accepted; ++k, t *= 0.5) {
       moved_to(x, u, E, step, t, x_new, u_new);
-      accepted = inside(x_new) && cost(x_new, u_new) <= f0 + 1e-4 * t * slope;
+      x_new = x_new.cwiseMax(lo_).cwiseMin(hi_);  // (the step is within them but for rounding)
+      accepted = cost(x_new, u_new) <= f0 + 1e-4 * t * slope;
     }
     return accepted;
   }
 
+  // Projected Newton on the box [lo, hi] (Bertsekas): a parameter at a bound that the
+  // descent would push out is held there, its row and column of H replaced by the unit's
+  // and its gradient zeroed (its step zero); the others are free, and a parameter leaves
+  // its hold as soon as the descent points inward
+  static void hold(int i, VecM& g, MatM& H) noexcept {
+    H.row(i).setZero();
+    H.col(i).setZero();
+    H(i, i) = 1.0;
+    g[i] = 0.0;
+  }
+
+  // held where the descent pushes out; returns the parameters at a bound left free
+  int hold_at_bounds(const VecN& x, VecM& g, MatM& H) const noexcept {
+    int free_at_bound = 0;
+    for (int i = 0; i < N; ++i) {
+      const bool low = x[i] <= lo_[i], high = x[i] >= hi_[i];
+      if ((low && g[i] > 0.0) || (high && g[i] < 0.0)) {
+        hold(i, g, H);
+      } else if (low || high) {
+        free_at_bound |= 1 << i;
+      }
+    }
+    return free_at_bound;
+  }
+
+  // the step on the free parameters; one at a bound that the step (through the coupling in
+  // H) would move out, where its own gradient points in, is held as well and the step
+  // taken again (the reduced step stays a descent)
+  VecM free_step(const VecN& x, VecM& g, MatM& H, bool& newton) const noexcept {
+    int free_at_bound = hold_at_bounds(x, g, H);
+    VecM step = newton_or_saddle_free(H, g, newton);
+    for (int i = 0; i < N && free_at_bound; ++i) {
+      if (!((free_at_bound >> i) & 1)) continue;
+      free_at_bound &= ~(1 << i);
+      if ((x[i] <= lo_[i] && step[i] < 0.0) || (x[i] >= hi_[i] && step[i] > 0.0)) {
+        hold(i, g, H);
+        step = newton_or_saddle_free(H, g, newton);
+      }
+    }
+    return step;
+  }
+
+  // the largest t <= 1 with x + t step within the bounds
+  double feasible_fraction(const VecN& x, const VecM& step) const noexcept {
+    double t = 1.0;
+    for (int i = 0; i < N; ++i) {
+      if (step[i] < 0.0 && x[i] + step[i] < lo_[i]) t = std::min(t, (lo_[i] - x[i]) / step[i]);
+      if (step[i] > 0.0 && x[i] + step[i] > hi_[i]) t = std::min(t, (hi_[i] - x[i]) / step[i]);
+    }
+    return std::max(t, 0.0);
+  }
+
   // One step from (x, u): the full Newton step where H is positive definite and the step
-  // within its caps, else a capped step with a line search
+  // within its caps and the bounds, else a capped step (cut at the first bound it meets)
+  // with a line search
   Outcome newton_step(const Here& e, const Basis& E, VecN& x, Eigen::Vector3d& u) noexcept {
     VecM g;
     MatM H;
     gradient_hessian(e, u, E, g, H);
     bool newton;
-    VecM step = newton_or_saddle_free(H, g, newton);
+    VecM step = free_step(x, g, H, newton);
     if (!step.allFinite()) return Outcome::kDeclined;
     const double scale = step_cap(e.d1, step);
     step *= scale;
+    const double fraction = feasible_fraction(x, step);
+    if (!(fraction > 0.0)) return Outcome::kDeclined;
+    step *= fraction;
     VecN x_new;
     Eigen::Vector3d u_new;
-    const bool full = newton && scale == 1.0;
+    const bool full = newton && scale == 1.0 && fraction == 1.0;
     if (full) {
       moved_to(x, u, E, step, 1.0, x_new, u_new);
       f_before_ = o_.w_p * e.r.squaredNorm() + o_.w_r * e.ang * e.ang;
@@ -250,7 +307,7 @@ class StylusNewton {
       // (g . step < 0: a descent direction)
       if (!line_search(x, u, E, step, f0, g.dot(step), x_new, u_new)) return Outcome::kDeclined;
     }
-    if (!inside(x_new)) return Outcome::kDeclined;  // at a stop: Gauss-Newton's active set
+    x_new = x_new.cwiseMax(lo_).cwiseMin(hi_);  // (a step cut at a bound: onto it exactly)
     const double moved = (e.d1 * (x_new - x)).norm(), n = (u_new - u).norm();
     x = x_new;
     u = u_new;

@@ -547,3 +547,112 @@ TEST(PlaceHooks, PlanarArmsAngleIsTheMinimiserToRounding) {
   }
   EXPECT_GT(checked, 550);
 }
+
+// A SurfaceProbe's seed for a nearest placement (positions only): on a plane, the placements
+// that put the handle exactly where it is form a circle of tips at sqrt(L^2 - h^2) from the
+// handle's foot (h its height), and the least is the one whose stylus is nearest the
+// handle's: its tip lies from the foot against the stylus's tangential part. The seed is
+// that placement, by this closed form; Newton's method from it stays.
+TEST(SurfaceProbeSeed, NearestSeedOnAPlaneIsTheReachCircleClosedForm) {
+  using namespace virtmech;
+  const double L = 0.1;
+  const Vector3d n = Vector3d(0.2, -0.3, 1.0).normalized();
+  const Vector3d o(0.01, 0.02, -0.03);
+  const SurfaceProbe mech(std::make_shared<Plane>(o, n), L);
+  const Vector6 w = (Vector6() << 1, 1, 1, 1e-8, 1e-8, 1e-8).finished();
+  std::mt19937 rng(31);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> height(0.005, 0.095), tilt(0.05, 1.2);
+  for (int k = 0; k < 100; ++k) {
+    const double h = height(rng);
+    const Vector3d foot = o + 0.05 * (Vector3d(g(rng), g(rng), g(rng)) -
+                                      n.dot(Vector3d(g(rng), g(rng), g(rng))) * n);
+    const Vector3d p = foot - n.dot(foot - o) * n + h * n;  // the handle, h above the plane
+    // the handle's stylus: from the normal tilted about a random axis in the plane
+    Vector3d axis = Vector3d(g(rng), g(rng), g(rng)).cross(n).normalized();
+    Pose target = Pose::Identity();
+    // handle z points from the handle to the tip: -u, u the tip-to-handle direction
+    const Vector3d u_R = Eigen::AngleAxisd(tilt(rng), axis) * n;
+    const Eigen::Matrix3d R =
+        Eigen::Quaterniond::FromTwoVectors(Vector3d::UnitZ(), -u_R).toRotationMatrix();
+    target.linear() = R;
+    target.translation() = p;
+    JointVector theta = mech.home();
+    mech.seed(target, w, theta);
+    Pose T;
+    mech.forward(theta.data(), T);
+    // the closed form
+    const Vector3d side = (u_R - n.dot(u_R) * n).normalized();
+    const Vector3d centre = p - h * n;
+    const Vector3d tip = centre - std::sqrt(L * L - h * h) * side;
+    const Vector3d tip_seed = T.translation() + L * T.linear().col(2);
+    EXPECT_LE((T.translation() - p).norm(), 1e-12) << k;
+    EXPECT_LE((tip_seed - tip).norm(), 1e-12) << k;
+    // Newton's method from the seed: there but for the least position error that the
+    // rotation term, 1e-8 against 1, trades for a smaller angle: w_r angle / (w_p L) < 4e-7 m
+    JointVector placed;
+    Pose T_p;
+    Jacobian J;
+    Vector6 e;
+    ASSERT_TRUE(mech.place(target, w, theta, placed, T_p, J, e)) << k;
+    EXPECT_LE((T_p.translation() + L * T_p.linear().col(2) - tip).norm(), 1e-6) << k;
+  }
+}
+
+// On a NURBS patch the nearest placement from the seed is the global least of the cost,
+// checked against a brute-force scan of the patch (each sampled tip with the stylus toward
+// the handle, its best there), and seed_pair() gives what seed() gives for each weighting.
+TEST(SurfaceProbeSeed, NearestPlacementFromTheSeedIsTheGlobalLeastOnANurbsPatch) {
+  using namespace virtmech;
+  const double L = 0.1;
+  const auto patch = vmtest::test_patch(Vector3d(0.01, -0.02, 0.03));
+  const SurfaceProbe mech(patch, L);
+  const Vector6 w = (Vector6() << 1, 1, 1, 1e-8, 1e-8, 1e-8).finished();
+  const Vector6 w_star = (Vector6() << 1e-6, 1e-6, 1e-6, 0.01, 0.01, 0.01).finished();
+  std::mt19937 rng(37);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const Eigen::Vector2d lo = patch->lower(), hi = patch->upper();
+  // the brute-force least of w_p (|p - S| - L)^2 over a fine grid: the stylus toward the
+  // handle (the rotation term, 1e-8, is left out: it moves the least along the circle only)
+  const auto least_gap = [&](const Vector3d& p) {
+    double best = 1e300;
+    for (int i = 0; i <= 400; ++i) {
+      for (int j = 0; j <= 400; ++j) {
+        const Vector3d S = patch->evaluate(lo[0] + (hi[0] - lo[0]) * i / 400.0,
+                                           lo[1] + (hi[1] - lo[1]) * j / 400.0);
+        best = std::min(best, std::abs((p - S).norm() - L));
+      }
+    }
+    return best;
+  };
+  int checked = 0;
+  for (int k = 0; k < 12; ++k) {
+    JointVector x = mech.home();
+    x[0] += 0.15 * g(rng);
+    x[1] += 0.15 * g(rng);
+    for (int i = 0; i < 3; ++i) x[2 + i] = 0.5 * g(rng);
+    x = x.cwiseMax(mech.lower()).cwiseMin(mech.upper());
+    Pose target;
+    mech.forward(x.data(), target);
+    target.translation() += 0.02 * Vector3d(g(rng), g(rng), g(rng));
+    JointVector a = mech.home(), b = mech.home(), a1 = a, b1 = b;
+    ASSERT_TRUE(mech.seed_pair(target, w, w_star, a, b));
+    mech.seed(target, w, a1);
+    mech.seed(target, w_star, b1);
+    EXPECT_EQ(a, a1) << k;
+    EXPECT_EQ(b, b1) << k;
+    JointVector theta;
+    TrackOptions opts;
+    opts.max_iterations = 100;
+    const TrackResult r =
+        track(mech, target, a.cwiseMax(mech.lower()).cwiseMin(mech.upper()), w, opts, theta);
+    (void)r;  // (where the circle leaves the patch, Gauss-Newton creeps along its edge)
+    Pose T;
+    mech.forward(theta.data(), T);
+    const double gap = (T.translation() - target.translation()).norm();
+    // within the grid's resolution of the scan's least (a grid step is under 0.4 mm)
+    EXPECT_LE(gap, least_gap(target.translation()) + 4e-4) << k;
+    ++checked;
+  }
+  EXPECT_EQ(checked, 12);
+}
