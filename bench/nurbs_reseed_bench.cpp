@@ -2,7 +2,7 @@
 // again on the first cycle after a fault (or a reset), for bicubic surfaces of n x n control
 // points: the surface's construction time and heap, the recovery cycle (the first after a
 // fault) against the ordinary cycle in the same process (median, p99 and their ratio), the
-// closest point from the recovery's tip (one of the two it computes, just after it), and
+// closest point from the recovery's tip (the one it computes, again just after it), and
 // NurbsSurface::closest_point alone from points near the surface.
 //
 //   virtmech_nurbs_bench [--size N]... [--repeats K] [--queries Q]
@@ -131,8 +131,8 @@ void cycles(const std::shared_ptr<const NurbsSurface>& surface, int repeats, Sta
     ctl.step(q.data(), dq.data(), out);
     first.push_back(micros(Clock::now() - t0));
     ++k;
-    // the global closest point the recovery placed the probe by (twice: both placements),
-    // from the tip 0.1 m along the stylus
+    // the global closest point the recovery seeded both placements by (once:
+    // Mechanism::seed_pair), from the tip 0.1 m along the stylus, again
     const Eigen::Vector3d tip =
         out.handle_pose.translation() + 0.1 * out.handle_pose.linear().col(2);
     const auto t1 = Clock::now();

@@ -187,7 +187,7 @@ struct StylusObjective {
 /// about the stylus drops out as for a line. Within the curve's bounds by projected Newton:
 /// a step is cut at the first bound it meets, and a parameter at a bound that the descent
 /// pushes out is held there (the minimum may lie on a stop). Returns false (s and u then
-/// undefined) where no full Newton step at rounding level ends 12 steps, or no step
+/// undefined) where no full Newton step at rounding level ends 30 steps, or no step
 /// descends; the caller then runs Gauss-Newton.
 bool curve_stylus_newton(const Curve& curve, const StylusObjective& objective, double& s,
                          Eigen::Vector3d& u) noexcept;

@@ -46,7 +46,7 @@ class StylusNewton {
     u.normalize();
     x_uncorrected_ = x;
     u_uncorrected_ = u;
-    for (int it = 0; it < 12; ++it) {
+    for (int it = 0; it < 30; ++it) {
       Here e;
       evaluate(x, u, e);
       if (corrected_) {  // the correction kept only where it lowered the cost
@@ -214,16 +214,21 @@ class StylusNewton {
               : u;
   }
 
-  // backtracking (Armijo) on the cost from (x, u), of cost f0, along a descent step of
-  // slope g . step < 0; false where no step within the bounds descends
+  // backtracking (Armijo) on the cost from (x, u), of cost f0 and gradient g (the held
+  // parameters' zero), along a descent step projected onto the bounds (Bertsekas' projected
+  // Armijo rule: the parameters that would leave stop on their bound, the others go on, and
+  // the decrease asked is the gradient's along the projected move); false where no step
+  // within the bounds descends
   bool line_search(const VecN& x, const Eigen::Vector3d& u, const Basis& E, const VecM& step,
-                   double f0, double slope, VecN& x_new, Eigen::Vector3d& u_new) const noexcept {
+                   double f0, const VecM& g, VecN& x_new, Eigen::Vector3d& u_new) const noexcept {
     double t = 1.0;
     bool accepted = false;
     for (int k = 0; k < 30 && !accepted; ++k, t *= 0.5) {
       moved_to(x, u, E, step, t, x_new, u_new);
-      x_new = x_new.cwiseMax(lo_).cwiseMin(hi_);  // (the step is within them but for rounding)
-      accepted = cost(x_new, u_new) <= f0 + 1e-4 * t * slope;
+      x_new = x_new.cwiseMax(lo_).cwiseMin(hi_);
+      const double slope = g.template head<N>().dot(x_new - x) +
+                           t * g.template tail<2>().dot(step.template tail<2>());
+      accepted = slope < 0.0 && cost(x_new, u_new) <= f0 + 1e-4 * slope;
     }
     return accepted;
   }
@@ -232,21 +237,28 @@ class StylusNewton {
   // descent would push out is held there, its row and column of H replaced by the unit's
   // and its gradient zeroed (its step zero); the others are free, and a parameter leaves
   // its hold as soon as the descent points inward
-  static void hold(int i, VecM& g, MatM& H) noexcept {
+  // parameter i held, moved by `onto` (onto its bound): the others' step is Newton's with
+  // it fixed there (their gradient moved by the coupling), its own `onto`
+  static void hold(int i, double onto, VecM& g, MatM& H) noexcept {
+    g += H.col(i) * onto;
     H.row(i).setZero();
     H.col(i).setZero();
     H(i, i) = 1.0;
-    g[i] = 0.0;
+    g[i] = -onto;
   }
 
-  // held where the descent pushes out; returns the parameters at a bound left free
+  // Held where the descent pushes out at a bound, or within 1e-3 of the parameter's range
+  // of it (Bertsekas' epsilon-active set: an iterate creeping toward a bound along a curved
+  // valley is put on it); returns the parameters at a bound left free.
   int hold_at_bounds(const VecN& x, VecM& g, MatM& H) const noexcept {
     int free_at_bound = 0;
     for (int i = 0; i < N; ++i) {
-      const bool low = x[i] <= lo_[i], high = x[i] >= hi_[i];
-      if ((low && g[i] > 0.0) || (high && g[i] < 0.0)) {
-        hold(i, g, H);
-      } else if (low || high) {
+      const double band = std::isfinite(hi_[i] - lo_[i]) ? 1e-3 * (hi_[i] - lo_[i]) : 0.0;
+      if (x[i] <= lo_[i] + band && g[i] > 0.0) {
+        hold(i, lo_[i] - x[i], g, H);
+      } else if (x[i] >= hi_[i] - band && g[i] < 0.0) {
+        hold(i, hi_[i] - x[i], g, H);
+      } else if (x[i] <= lo_[i] || x[i] >= hi_[i]) {
         free_at_bound |= 1 << i;
       }
     }
@@ -263,51 +275,44 @@ class StylusNewton {
       if (!((free_at_bound >> i) & 1)) continue;
       free_at_bound &= ~(1 << i);
       if ((x[i] <= lo_[i] && step[i] < 0.0) || (x[i] >= hi_[i] && step[i] > 0.0)) {
-        hold(i, g, H);
+        hold(i, 0.0, g, H);
         step = newton_or_saddle_free(H, g, newton);
       }
     }
     return step;
   }
 
-  // the largest t <= 1 with x + t step within the bounds
-  double feasible_fraction(const VecN& x, const VecM& step) const noexcept {
-    double t = 1.0;
-    for (int i = 0; i < N; ++i) {
-      if (step[i] < 0.0 && x[i] + step[i] < lo_[i]) t = std::min(t, (lo_[i] - x[i]) / step[i]);
-      if (step[i] > 0.0 && x[i] + step[i] > hi_[i]) t = std::min(t, (hi_[i] - x[i]) / step[i]);
-    }
-    return std::max(t, 0.0);
+  // x + step within the bounds
+  bool within_bounds(const VecN& x, const VecM& step) const noexcept {
+    return inside(x + step.template head<N>());
   }
 
   // One step from (x, u): the full Newton step where H is positive definite and the step
-  // within its caps and the bounds, else a capped step (cut at the first bound it meets)
-  // with a line search
+  // within its caps and the bounds, else a capped step with a line search projected onto
+  // the bounds
   Outcome newton_step(const Here& e, const Basis& E, VecN& x, Eigen::Vector3d& u) noexcept {
     VecM g;
     MatM H;
     gradient_hessian(e, u, E, g, H);
+    const VecM gradient = g;
     bool newton;
     VecM step = free_step(x, g, H, newton);
     if (!step.allFinite()) return Outcome::kDeclined;
     const double scale = step_cap(e.d1, step);
     step *= scale;
-    const double fraction = feasible_fraction(x, step);
-    if (!(fraction > 0.0)) return Outcome::kDeclined;
-    step *= fraction;
+    const bool within = within_bounds(x, step);
     VecN x_new;
     Eigen::Vector3d u_new;
-    const bool full = newton && scale == 1.0 && fraction == 1.0;
+    const bool full = newton && scale == 1.0 && within;
     if (full) {
       moved_to(x, u, E, step, 1.0, x_new, u_new);
+      x_new = x_new.cwiseMax(lo_).cwiseMin(hi_);  // (onto a bound exactly where held onto it)
       f_before_ = o_.w_p * e.r.squaredNorm() + o_.w_r * e.ang * e.ang;
       r_model_ = e.r + e.d1 * step.template head<N>() + L_ * (E * step.template tail<2>());
     } else {
       const double f0 = o_.w_p * e.r.squaredNorm() + o_.w_r * e.ang * e.ang;
-      // (g . step < 0: a descent direction)
-      if (!line_search(x, u, E, step, f0, g.dot(step), x_new, u_new)) return Outcome::kDeclined;
+      if (!line_search(x, u, E, step, f0, gradient, x_new, u_new)) return Outcome::kDeclined;
     }
-    x_new = x_new.cwiseMax(lo_).cwiseMin(hi_);  // (a step cut at a bound: onto it exactly)
     const double moved = (e.d1 * (x_new - x)).norm(), n = (u_new - u).norm();
     x = x_new;
     u = u_new;

@@ -656,3 +656,57 @@ TEST(SurfaceProbeSeed, NearestPlacementFromTheSeedIsTheGlobalLeastOnANurbsPatch)
   }
   EXPECT_EQ(checked, 12);
 }
+
+// The stylus Newton keeps a NURBS patch's parameters within their bounds by projected
+// Newton: with the handle beyond an edge, the least lies on it, and Newton places it there
+// (where it used to decline to Gauss-Newton) at a cost no higher than Gauss-Newton's own
+// end (tracked with the closed form off), with the edge's KKT sign: the cost pushes out.
+TEST(SurfaceProbeSeed, NewtonPlacesALeastOnAnEdgeOfThePatch) {
+  using namespace virtmech;
+  const double L = 0.1;
+  const SurfaceProbe mech(vmtest::test_patch(Vector3d(0.01, -0.02, 0.03)), L);
+  const Vector6 w = (Vector6() << 1, 1, 1, L * L, L * L, L * L).finished();
+  std::mt19937 rng(41);
+  std::normal_distribution<double> g(0.0, 1.0);
+  TrackOptions gn;
+  gn.closed_form = false;
+  gn.max_iterations = 200;
+  int on_edge = 0;
+  for (int k = 0; k < 40; ++k) {
+    // a pose of the probe on the edge u = 1 (or v = 0), the handle then moved 1-3 cm on
+    // outward along the edge's outward tangent
+    JointVector x = mech.home();
+    const bool along_u = k % 2 == 0;
+    x[0] = along_u ? 1.0 : 0.2 + 0.6 * std::abs(g(rng)) / 3.0;
+    x[1] = along_u ? 0.2 + 0.6 * std::abs(g(rng)) / 3.0 : 0.0;
+    for (int i = 0; i < 3; ++i) x[2 + i] = 0.3 * g(rng);
+    Pose T0;
+    Jacobian J0;
+    mech.forward_jacobian(x.data(), T0, J0);
+    const Vector3d out = (along_u ? 1.0 : -1.0) * J0.col(along_u ? 0 : 1).head<3>().normalized();
+    Pose target = T0;
+    target.translation() += (0.01 + 0.02 * std::abs(g(rng)) / 3.0) * out;
+    JointVector start = x;
+    start[along_u ? 0 : 1] = along_u ? 0.9 : 0.1;  // from inside
+    JointVector theta;
+    Pose T;
+    Jacobian J;
+    Vector6 e;
+    if (!mech.place(target, w, start, theta, T, J, e)) continue;
+    JointVector theta_gn;
+    track(mech, target, start, w, gn, theta_gn);
+    Pose T_gn;
+    mech.forward(theta_gn.data(), T_gn);
+    const Vector6 e_gn = pose_error(target, T_gn);
+    const double cost = e.dot(w.cwiseProduct(e)), cost_gn = e_gn.dot(w.cwiseProduct(e_gn));
+    EXPECT_LE(cost, cost_gn * (1 + 1e-9) + 1e-18) << k;
+    const int i = along_u ? 0 : 1;
+    if (theta[i] == (along_u ? 1.0 : 0.0)) {
+      ++on_edge;
+      // the cost's gradient in that parameter, -2 J_i^T W e, pushes out of the patch
+      const double grad = -2.0 * J.col(i).dot(w.cwiseProduct(e));
+      EXPECT_TRUE(along_u ? grad < 0.0 : grad > 0.0) << k << " " << grad;
+    }
+  }
+  EXPECT_GE(on_edge, 30);
+}
