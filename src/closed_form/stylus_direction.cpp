@@ -305,12 +305,18 @@ Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
   double best_value = f.value(f.u_R);
   Eigen::Vector3d ends[8];
   int n_ends = 0;
+  // A tie (two distinct minima, more than 1e-3 apart, within 1e-10 of each other's cost,
+  // as the mirror minima of a handle square to the line) goes to the one nearer the start:
+  // the placement stays on its side instead of alternating between the two on rounding
+  // from one cycle to the next. Ends of one minimum (closer) go by their cost, as others.
   auto descend = [&](const Eigen::Vector3d& s) {
     double value;
-    ends[n_ends++] = sphere_newton(f, s, value);
-    if (value < best_value) {
-      best_value = value;
-      best = ends[n_ends - 1];
+    const Eigen::Vector3d& u = ends[n_ends++] = sphere_newton(f, s, value);
+    const bool tie = (u - best).norm() > 1e-3 &&
+                     std::abs(value - best_value) <= 1e-10 * std::abs(best_value);
+    if (tie ? (u - u_start).norm() < (best - u_start).norm() : value < best_value) {
+      best_value = std::min(value, best_value);
+      best = u;
     }
     return value;
   };

@@ -710,3 +710,45 @@ TEST(SurfaceProbeSeed, NewtonPlacesALeastOnAnEdgeOfThePatch) {
   }
   EXPECT_GE(on_edge, 30);
 }
+
+// A LineGuide's handle square to its line, the stylus shorter than its height plus reach:
+// the tip may sit on either side of the handle's foot, two mirror placements of equal cost.
+// The placement keeps the side its start is on (a tie within 1e-10 of the cost goes to the
+// end nearer the start), so that rounding cannot make it alternate from cycle to cycle;
+// where one side is truly lower (the handle tilted 1e-6 rad) it wins from either start.
+TEST(LineGuideTie, MirrorPlacementsOfEqualCostKeepTheStartsSide) {
+  using namespace virtmech;
+  const double L = 0.1, h = 0.06;
+  const LineGuide mech(Vector3d::Zero(), Vector3d::UnitX(), L, Vector3d::UnitZ());
+  const Vector6 w = (Vector6() << 1, 1, 1, 1e-4, 1e-4, 1e-4).finished();
+  // the handle h above the line's origin, its stylus (tip to handle) tilted by `tilt` about
+  // y from straight up: the handle's z points from the handle toward the tip
+  const auto handle = [&](double tilt) {
+    Pose T = Pose::Identity();
+    T.linear() = Eigen::AngleAxisd(M_PI + tilt, Vector3d::UnitY()).toRotationMatrix();
+    T.translation() = Vector3d(0.0, 0.0, h);
+    return T;
+  };
+  JointVector side[2];
+  Pose T;
+  Jacobian J;
+  Vector6 e;
+  for (int s = 0; s < 2; ++s) {  // a clear start on each side, from a handle tilted that way
+    const Pose tilted = handle(s == 0 ? 0.3 : -0.3);
+    ASSERT_TRUE(mech.place(tilted, w, mech.home(), side[s], T, J, e));
+  }
+  ASSERT_LT(side[0][0] * side[1][0], 0.0);  // the tips on either side of the foot
+  for (const double tilt : {0.0, 1e-13, -1e-13, 1e-12, -1e-12}) {
+    for (int s = 0; s < 2; ++s) {
+      JointVector theta;
+      ASSERT_TRUE(mech.place(handle(tilt), w, side[s], theta, T, J, e));
+      EXPECT_GT(theta[0] * side[s][0], 0.0) << "tilt " << tilt << ", start on side " << s;
+    }
+  }
+  for (const double tilt : {1e-6, -1e-6}) {  // a real preference: the same end from both
+    JointVector a, b;
+    ASSERT_TRUE(mech.place(handle(tilt), w, side[0], a, T, J, e));
+    ASSERT_TRUE(mech.place(handle(tilt), w, side[1], b, T, J, e));
+    EXPECT_GT(a[0] * b[0], 0.0) << tilt;
+  }
+}
