@@ -268,12 +268,31 @@ LineCaps line_caps(const StylusCost& f, const Eigen::Vector3d& w, double value) 
   return caps;
 }
 
+// The best of the descents' ends so far. A tie (two distinct minima, more than 1e-3 apart,
+// within 1e-10 of each other's cost, as the mirror minima of a handle square to the line)
+// goes to the one nearer the start: the placement stays on its side instead of alternating
+// between the two on rounding from one cycle to the next. Ends of one minimum (closer) go
+// by their cost, as others.
+struct BestEnd {
+  Eigen::Vector3d u;
+  double value = 0.0;
+  void offer(const Eigen::Vector3d& end, double end_value, const Eigen::Vector3d& start) noexcept {
+    const bool tie = (end - u).norm() > 1e-3 &&
+                     std::abs(end_value - value) <= 1e-10 * std::abs(value);
+    if (tie ? (end - start).norm() < (u - start).norm() : end_value < value) {
+      value = std::min(end_value, value);
+      u = end;
+    }
+  }
+};
+
 // Newton on the sphere for a tip held to a line (f.set.free), from u_start (the last
 // placement's: its end is usually the answer, and certified_global() may show it), u_R,
 // u_extra, the stylus normal to the line and the directions that put the tip on it; the
 // best end
 Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
                            const Eigen::Vector3d& u_extra) noexcept {
+  BestEnd best_end;
   Eigen::Vector3d starts[6];
   int count = 0;
   auto add = [&](const Eigen::Vector3d& v) {
@@ -301,23 +320,16 @@ Eigen::Vector3d multistart(const StylusCost& f, const Eigen::Vector3d& u_start,
   }
   // the first start's end, and where a certificate shows the global minimum among the
   // ends met so far, no further starts
-  Eigen::Vector3d best = f.u_R;
-  double best_value = f.value(f.u_R);
+  Eigen::Vector3d& best = best_end.u;
+  double& best_value = best_end.value;
+  best = f.u_R;
+  best_value = f.value(f.u_R);
   Eigen::Vector3d ends[8];
   int n_ends = 0;
-  // A tie (two distinct minima, more than 1e-3 apart, within 1e-10 of each other's cost,
-  // as the mirror minima of a handle square to the line) goes to the one nearer the start:
-  // the placement stays on its side instead of alternating between the two on rounding
-  // from one cycle to the next. Ends of one minimum (closer) go by their cost, as others.
   auto descend = [&](const Eigen::Vector3d& s) {
     double value;
-    const Eigen::Vector3d& u = ends[n_ends++] = sphere_newton(f, s, value);
-    const bool tie = (u - best).norm() > 1e-3 &&
-                     std::abs(value - best_value) <= 1e-10 * std::abs(best_value);
-    if (tie ? (u - u_start).norm() < (best - u_start).norm() : value < best_value) {
-      best_value = std::min(value, best_value);
-      best = u;
-    }
+    ends[n_ends] = sphere_newton(f, s, value);
+    best_end.offer(ends[n_ends++], value, u_start);
     return value;
   };
   if (count == 0) return best;
