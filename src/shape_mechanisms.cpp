@@ -190,16 +190,19 @@ double positive_length(const std::string& name, double length) {
   return length;
 }
 
-// A probe's seed matches the handle's orientation. Where the weights count positions only
-// (an under-actuated device's nearest placement), a stylus along the position error is a
-// stationary point of the cost that is not its least (tilting reaches the handle), and
-// Gauss-Newton, which sees no curvature, would stay: start tilted a little instead.
+// The weights count positions only (an under-actuated device's nearest placement): the
+// rotation weights, per length squared, below 1e-3 of the position weights.
 bool positions_only(const Vector6& w, double length) noexcept {
   const double positions = w.head<3>().minCoeff();
   const double rotations = w.tail<3>().maxCoeff() / (length * length);
   return rotations < 1e-3 * positions;
 }
 
+// A probe's seed matches the handle's orientation. Where the weights count positions only,
+// a stylus along the position error is a stationary point of the cost that is not its
+// least (tilting reaches the handle), and Gauss-Newton, which sees no curvature, would
+// stay: a CurveGuide's seed starts tilted a little instead (a SurfaceProbe's goes to the
+// least directly: SurfaceProbe::reach_seed).
 void tilt_if_positions_only(const Vector6& w, double length, JointVector& theta,
                             int wrist) noexcept {
   constexpr double kTilt = 0.1;  // [rad]

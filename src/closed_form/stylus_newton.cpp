@@ -234,11 +234,10 @@ class StylusNewton {
   }
 
   // Projected Newton on the box [lo, hi] (Bertsekas): a parameter at a bound that the
-  // descent would push out is held there, its row and column of H replaced by the unit's
-  // and its gradient zeroed (its step zero); the others are free, and a parameter leaves
-  // its hold as soon as the descent points inward
-  // parameter i held, moved by `onto` (onto its bound): the others' step is Newton's with
-  // it fixed there (their gradient moved by the coupling), its own `onto`
+  // descent would push out is held there, its row and column of H replaced by the unit's;
+  // the others are free, and a parameter leaves its hold as soon as the descent points
+  // inward. Parameter i held, moved by `onto` (onto its bound): the others' step is
+  // Newton's with it fixed there (their gradient moved by the coupling), its own `onto`.
   static void hold(int i, double onto, VecM& g, MatM& H) noexcept {
     g += H.col(i) * onto;
     H.row(i).setZero();
