@@ -18,6 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "virtmech/output_table.h"
 #include "virtmech/settings_table.h"
 
 #ifdef __cplusplus
@@ -170,25 +171,26 @@ typedef struct vm_settings {
 #undef VM_C_ENUM
 } vm_settings;
 
-/* Diagnostics of the last cycle. */
+/* Diagnostics of the last cycle: the dimensions, then one member per row of VM_CYCLE_OUTPUT
+ * (virtmech/output_table.h: each field's meaning); joint values fill VM_MAX_DOF entries,
+ * zero beyond the dimension, and poses are row-major 4x4. */
 typedef struct vm_diagnostics {
   int device_dof, mechanism_dof;
-  double torque[VM_MAX_DOF];
-  double wrench[6], wrench_null[6], wrench_range[6], wrench_unrendered[6];
-  double theta[VM_MAX_DOF], theta_star[VM_MAX_DOF];
-  double error[6], error_dot[6], error_star[6], error_star_dot[6];
-  double handle_pose[16];         /* row-major 4x4 */
-  double mechanism_pose[16];      /* row-major 4x4, nearest placement */
-  double mechanism_pose_star[16]; /* row-major 4x4, un-powered placement */
-  double residual, residual_star; /* sqrt(e^T W e) of each placement */
-  int iterations, iterations_star;
-  uint32_t active, active_star; /* joints held at a limit that acts (bit i: joint i) */
-  double ramp, limit_scale;
-  double energy;               /* energy tank: the energy it may give [J] */
-  double wrench_passivity[6];  /* the part of the range term the tank held back */
-  double passivity_scale;      /* the range term's factor, [0, 1] */
-  uint32_t status;
-  double computation_time_us;
+#define VM_D_JOINTS(name, doc) double name[VM_MAX_DOF];
+#define VM_D_VEC6(name, doc) double name[6];
+#define VM_D_POSE(name, doc) double name[16];
+#define VM_D_LOCKS(name, of, doc) uint32_t name;
+#define VM_D_INT(name, doc) int name;
+#define VM_D_REAL(name, value, doc) double name;
+#define VM_D_BITS(name, doc) uint32_t name;
+  VM_CYCLE_OUTPUT(VM_D_JOINTS, VM_D_VEC6, VM_D_POSE, VM_D_LOCKS, VM_D_INT, VM_D_REAL, VM_D_BITS)
+#undef VM_D_JOINTS
+#undef VM_D_VEC6
+#undef VM_D_POSE
+#undef VM_D_LOCKS
+#undef VM_D_INT
+#undef VM_D_REAL
+#undef VM_D_BITS
 } vm_diagnostics;
 
 typedef struct vm_controller vm_controller;

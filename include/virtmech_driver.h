@@ -19,6 +19,7 @@
 #include <stdint.h>
 
 #include "virtmech.h"
+#include "virtmech/drivers/servo_stats_table.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -69,18 +70,18 @@ typedef struct vm_driver_record {
   double wrench_null[6], wrench_range[6];
 } vm_driver_record;
 
-/* Counters of a driver, readable from a normal thread while it runs. */
+/* Counters of a driver, readable from a normal thread while it runs: one member per row of
+ * VM_SERVO_STATS (virtmech/drivers/servo_stats_table.h: each counter's meaning). */
 typedef struct vm_driver_stats {
-  uint64_t ticks, late, watchdog, zero_ticks, dropped;
-  double elapsed_s;     /* the last tick's time stamp [s] */
-  double rate_hz;       /* measured tick rate [Hz] */
-  double worst_tick_us; /* the longest tick [µs] */
-  double worst_gap_s;   /* the longest gap between ticks [s] */
-  double force_n;       /* |f| of the last tick [N] */
-  uint32_t status, flags; /* the last tick's controller status and driver flags */
-  int stop;               /* VM_DRIVER_RUNNING or why it stopped */
-  uint32_t device_error;  /* the device error that stopped it */
-  uint32_t fault_status;  /* the controller fault bits that stopped it */
+#define VM_DS_COUNT(name, doc) uint64_t name;
+#define VM_DS_REAL(name, doc) double name;
+#define VM_DS_BITS(name, doc) uint32_t name;
+#define VM_DS_STOP(name, doc) int name;
+  VM_SERVO_STATS(VM_DS_COUNT, VM_DS_REAL, VM_DS_BITS, VM_DS_STOP)
+#undef VM_DS_COUNT
+#undef VM_DS_REAL
+#undef VM_DS_BITS
+#undef VM_DS_STOP
 } vm_driver_stats;
 
 typedef struct vm_driver vm_driver;

@@ -374,33 +374,16 @@ void copy_diagnostics(const CycleOutput& o, int device_dof, int mechanism_dof,
                       vm_diagnostics* d) {
   d->device_dof = device_dof;
   d->mechanism_dof = mechanism_dof;
-  copy_vec(o.torque, d->torque, VM_MAX_DOF);
-  copy_vec(o.wrench, d->wrench, 6);
-  copy_vec(o.wrench_null, d->wrench_null, 6);
-  copy_vec(o.wrench_range, d->wrench_range, 6);
-  copy_vec(o.wrench_unrendered, d->wrench_unrendered, 6);
-  copy_vec(o.theta, d->theta, VM_MAX_DOF);
-  copy_vec(o.theta_star, d->theta_star, VM_MAX_DOF);
-  copy_vec(o.error, d->error, 6);
-  copy_vec(o.error_dot, d->error_dot, 6);
-  copy_vec(o.error_star, d->error_star, 6);
-  copy_vec(o.error_star_dot, d->error_star_dot, 6);
-  pose_to(o.handle_pose, d->handle_pose);
-  pose_to(o.mechanism_pose, d->mechanism_pose);
-  pose_to(o.mechanism_pose_star, d->mechanism_pose_star);
-  d->residual = o.residual;
-  d->residual_star = o.residual_star;
-  d->iterations = o.iterations;
-  d->iterations_star = o.iterations_star;
-  d->active = o.active;
-  d->active_star = o.active_star;
-  d->ramp = o.ramp;
-  d->limit_scale = o.limit_scale;
-  d->energy = o.energy;
-  copy_vec(o.wrench_passivity, d->wrench_passivity, 6);
-  d->passivity_scale = o.passivity_scale;
-  d->status = o.status;
-  d->computation_time_us = o.computation_time_us;
+#define VM_COPY_JOINTS(name, doc) copy_vec(o.name, d->name, VM_MAX_DOF);
+#define VM_COPY_VEC6(name, doc) copy_vec(o.name, d->name, 6);
+#define VM_COPY_POSE(name, doc) pose_to(o.name, d->name);
+#define VM_COPY_VALUE(name, ...) d->name = o.name;
+  VM_CYCLE_OUTPUT(VM_COPY_JOINTS, VM_COPY_VEC6, VM_COPY_POSE, VM_COPY_VALUE, VM_COPY_VALUE,
+                  VM_COPY_VALUE, VM_COPY_VALUE)
+#undef VM_COPY_JOINTS
+#undef VM_COPY_VEC6
+#undef VM_COPY_POSE
+#undef VM_COPY_VALUE
 }
 
 // Zeroes tau[0..n) for a call the cycle cannot run (NULL pointers, a wrong n).

@@ -23,11 +23,18 @@
 #include "virtmech/device.hpp"
 #include "virtmech/filters.hpp"
 #include "virtmech/mechanism.hpp"
+#include "virtmech/output_table.h"
 #include "virtmech/passivity.hpp"
 #include "virtmech/settings.hpp"
 #include "virtmech/track.hpp"
 
 namespace virtmech {
+
+/// A bit of a status word and its name.
+struct BitName {
+  std::uint32_t bit;
+  const char* name;
+};
 
 /// Status bits of a cycle. Bits below kFaultMask inform; a fault bit means zero torque.
 namespace status {
@@ -46,6 +53,20 @@ constexpr std::uint32_t kFaultOutOfRange = 1u << 11;      //!< q beyond the join
 /// dq beyond the device's fastest plausible speed + margin
 constexpr std::uint32_t kFaultImplausibleVelocity = 1u << 12;
 constexpr std::uint32_t kFaultMask = 0xFF00u;
+/// Each bit's name, as Python's status_names() and the logs' readers spell it.
+inline constexpr BitName kNames[] = {
+    {kRamping, "ramping"},
+    {kForceClamped, "force_clamped"},
+    {kTorqueClamped, "torque_clamped"},
+    {kNotConverged, "not_converged"},
+    {kWatchdog, "watchdog"},
+    {kPassivity, "passivity"},
+    {kSwitching, "switching"},
+    {kFaultNonFiniteInput, "fault_nonfinite_input"},
+    {kFaultNonFiniteOutput, "fault_nonfinite_output"},
+    {kFaultBadSize, "fault_bad_size"},
+    {kFaultOutOfRange, "fault_out_of_range"},
+    {kFaultImplausibleVelocity, "fault_implausible_velocity"}};
 }  // namespace status
 
 /// User settings, one member per row of VM_CONTROLLER_SETTINGS
@@ -110,45 +131,26 @@ struct ControllerModel {
   JointVector passivity_play;           //!< the observer's play per joint [rad or m]
 };
 
-/// Everything one cycle reports. Fixed-capacity members: copying never allocates.
+/// Everything one cycle reports, one member per row of VM_CYCLE_OUTPUT
+/// (include/virtmech/output_table.h: each field's meaning, shape and unit). Fixed-capacity
+/// members: copying never allocates.
 struct CycleOutput {
-  JointVector torque;             //!< joint torques commanded [N·m or N]; passive = 0
-  Vector6 wrench;                 //!< wrench applied at the handle [N; N·m]
-  Vector6 wrench_null;            //!< N(W_A)(Kp e + Kv e_dot), before safety
-  Vector6 wrench_range;           //!< P(W_A)(Kp e* + Kv e*_dot), before safety
-  Vector6 wrench_unrendered;      //!< part of the commanded wrench the device cannot apply
-  JointVector theta;              //!< nearest placement (W_e)
-  JointVector theta_star;         //!< un-powered placement (W_e*)
-  Vector6 error, error_dot;       //!< e = X_V - X_R and its rate
-  Vector6 error_star, error_star_dot;
-  Pose handle_pose = Pose::Identity();
-  Pose mechanism_pose = Pose::Identity();
-  Pose mechanism_pose_star = Pose::Identity();
-  int iterations = 0, iterations_star = 0;
-  double residual = 0.0, residual_star = 0.0;
-  /// Joints of each placement held at a limit that acts (bit i: joint i), i.e. locked.
-  std::uint32_t active = 0, active_star = 0;
-  double ramp = 0.0;              //!< ramp-in factor applied [0, 1]
-  double limit_scale = 1.0;       //!< factor applied by force and torque limits (0, 1]
-  /// Energy tank: its level, the energy the rendering has absorbed: at the start the
-  /// springs' energy up to passivity_start_energy_j (after a fault or a watchdog trip 0),
-  /// minus the motors' work since as the observer books it (two cycles late), held at most
-  /// at the springs' energy plus passivity_max_energy_j [J]; 0 with passivity off
-  double energy = 0.0;
-  /// What the law's springs hold [J]: Kp e at the nearest placement and, with eq. 26, the
-  /// range term's P(W_A) Kp e* times the factor the tank applied to it the cycle before,
-  /// each saturating at the wrench limits (docs/theory.md)
-  double stored_energy = 0.0;
-  /// The part of the range term the passivity layer held back, (scale l - 1) wrench_range,
-  /// l = min(1, max_force / |force|, max_torque / |moment|) of wrench_range (with passivity
-  /// on, the range term is limited to the wrench limits before its factor applies)
-  Vector6 wrench_passivity = Vector6::Zero();
-  /// The range term's factor, in [0, 1]; it changes by at most passivity_fade_step a cycle
-  double passivity_scale = 1.0;
-  std::uint32_t status = status::kOk;
-  /// this cycle's own computation time [µs] (the processor's time-stamp counter where it is
-  /// invariant, else steady_clock)
-  double computation_time_us = 0.0;
+#define VM_OUT_JOINTS(name, doc) JointVector name;
+#define VM_OUT_VEC6(name, doc) Vector6 name = Vector6::Zero();
+#define VM_OUT_POSE(name, doc) Pose name = Pose::Identity();
+#define VM_OUT_LOCKS(name, of, doc) std::uint32_t name = 0;
+#define VM_OUT_INT(name, doc) int name = 0;
+#define VM_OUT_REAL(name, value, doc) double name = value;
+#define VM_OUT_BITS(name, doc) std::uint32_t name = status::kOk;
+  VM_CYCLE_OUTPUT(VM_OUT_JOINTS, VM_OUT_VEC6, VM_OUT_POSE, VM_OUT_LOCKS, VM_OUT_INT, VM_OUT_REAL,
+                  VM_OUT_BITS)
+#undef VM_OUT_JOINTS
+#undef VM_OUT_VEC6
+#undef VM_OUT_POSE
+#undef VM_OUT_LOCKS
+#undef VM_OUT_INT
+#undef VM_OUT_REAL
+#undef VM_OUT_BITS
 };
 
 /// One placement of the mechanism (eqs. 18-20) with its state: used twice per cycle, with

@@ -286,26 +286,9 @@ nb::list describe_specs(const std::vector<ParamSpec>& specs) {
   return out;
 }
 
-const std::vector<std::pair<std::uint32_t, const char*>>& status_bits() {
-  static const std::vector<std::pair<std::uint32_t, const char*>> bits = {
-      {status::kRamping, "ramping"},
-      {status::kForceClamped, "force_clamped"},
-      {status::kTorqueClamped, "torque_clamped"},
-      {status::kNotConverged, "not_converged"},
-      {status::kWatchdog, "watchdog"},
-      {status::kPassivity, "passivity"},
-      {status::kSwitching, "switching"},
-      {status::kFaultNonFiniteInput, "fault_nonfinite_input"},
-      {status::kFaultNonFiniteOutput, "fault_nonfinite_output"},
-      {status::kFaultBadSize, "fault_bad_size"},
-      {status::kFaultOutOfRange, "fault_out_of_range"},
-      {status::kFaultImplausibleVelocity, "fault_implausible_velocity"}};
-  return bits;
-}
-
 nb::list status_names(std::uint32_t s) {
   nb::list l;
-  for (const auto& [bit, name] : status_bits())
+  for (const auto& [bit, name] : status::kNames)
     if (s & bit) l.append(name);
   return l;
 }

@@ -73,8 +73,7 @@ nb::dict to_python(const Params& params, bool lists = true);
 /// unit, doc, choices, fields).
 nb::list describe_specs(const std::vector<ParamSpec>& specs);
 
-/// The status bits (virtmech::status) with their names, and the names of a status word's.
-const std::vector<std::pair<std::uint32_t, const char*>>& status_bits();
+/// The names of a status word's bits (virtmech::status::kNames).
 nb::list status_names(std::uint32_t status);
 
 }  // namespace vmpy

@@ -37,30 +37,6 @@ ServoSettings servo_settings(double period_s, double velocity_cutoff_hz, double 
   return s;
 }
 
-const char* stop_name(StopReason r) {
-  switch (r) {
-    case StopReason::kRequested:
-      return "requested";
-    case StopReason::kDeviceError:
-      return "device_error";
-    case StopReason::kFaultHeld:
-      return "fault_held";
-    default:
-      return "running";
-  }
-}
-
-const char* calibration_name(Calibration c) {
-  switch (c) {
-    case Calibration::kOk:
-      return "ok";
-    case Calibration::kUpdated:
-      return "updated";
-    default:
-      return "needs_inkwell";
-  }
-}
-
 nb::dict info_dict(const DeviceInfo& i) {
   nb::dict d;
   d["library"] = i.library;
@@ -80,33 +56,21 @@ nb::dict info_dict(const DeviceInfo& i) {
   return d;
 }
 
+// one entry per row of VM_SERVO_STATS (virtmech/drivers/servo_stats_table.h)
 nb::dict stats_dict(const ServoStats& s) {
   nb::dict d;
-  d["ticks"] = s.ticks;
-  d["late"] = s.late;
-  d["watchdog"] = s.watchdog;
-  d["zero_ticks"] = s.zero_ticks;
-  d["dropped"] = s.dropped;
-  d["elapsed_s"] = s.elapsed_s;
-  d["rate_hz"] = s.rate_hz;
-  d["worst_tick_us"] = s.worst_tick_us;
-  d["worst_gap_s"] = s.worst_gap_s;
-  d["force_n"] = s.force_n;
-  d["status"] = s.status;
-  d["flags"] = s.flags;
-  d["stop"] = stop_name(s.reason);
-  d["device_error"] = s.device_error;
-  d["fault_status"] = s.fault_status;
+#define VM_STATS_VALUE(name, doc) d[#name] = s.name;
+#define VM_STATS_STOP(name, doc) d[#name] = name_of(s.name);
+  VM_SERVO_STATS(VM_STATS_VALUE, VM_STATS_VALUE, VM_STATS_VALUE, VM_STATS_STOP)
+#undef VM_STATS_VALUE
+#undef VM_STATS_STOP
   return d;
 }
 
 template <typename Renderer>
 void start(DeviceDriver& d, Renderer& r, double period_s, double velocity_cutoff_hz,
            double late_s, double fault_limit_s, std::size_t record_capacity) {
-  const ServoSettings s =
-      servo_settings(period_s, velocity_cutoff_hz, late_s, fault_limit_s, record_capacity);
-  nb::gil_scoped_release release;
-  d.start(r, s);
+  d.start(r, servo_settings(period_s, velocity_cutoff_hz, late_s, fault_limit_s, record_capacity));
 }
 
 // the driver errors as Python exceptions (RuntimeError's subclasses)
@@ -147,57 +111,35 @@ void expose_records(nb::module_& m) {
       },
       "{field: (first number, width)} of a tick record (arrays at their full width).");
   nb::dict flags;
-  flags["late"] = driver_flag::kLate;
-  flags["watchdog"] = driver_flag::kWatchdog;
-  flags["device_error"] = driver_flag::kDeviceError;
-  flags["fault_held"] = driver_flag::kFaultHeld;
-  flags["stopping"] = driver_flag::kStopping;
-  flags["bad_reading"] = driver_flag::kBadReading;
+  for (const auto& [bit, name] : driver_flag::kNames) flags[name] = bit;
   m.attr("FLAGS") = flags;
   m.attr("ZERO_MASK") = driver_flag::kZeroMask;
 }
 
-void expose_device_driver(nb::module_& m) {
+// the servo's settings as keywords with their defaults (ServoSettings)
+template <class Renderer>
+void def_start(nb::class_<DeviceDriver>& cls, const char* doc) {
   const ServoSettings defaults;
-  nb::class_<DeviceDriver>(m, "DeviceDriver",
-                           "A device driver (its vendor's SDK loaded at run time).")
-      .def(
-          "open",
-          [](DeviceDriver& d, const Device& model) {
-            nb::gil_scoped_release release;
-            d.open(model);
-          },
-          "model"_a, nb::keep_alive<1, 2>(),
+  cls.def("start", &start<Renderer>, "controller"_a, "period_s"_a = defaults.period_s,
+          "velocity_cutoff_hz"_a = defaults.velocity_cutoff_hz, "late_s"_a = defaults.late_s,
+          "fault_limit_s"_a = defaults.fault_limit_s,
+          "record_capacity"_a = defaults.record_capacity, nb::keep_alive<1, 2>(),
+          nb::call_guard<nb::gil_scoped_release>(), doc);
+}
+
+void expose_device_driver(nb::module_& m) {
+  using Unlocked = nb::call_guard<nb::gil_scoped_release>;  // the GIL released while it runs
+  nb::class_<DeviceDriver> cls(m, "DeviceDriver",
+                               "A device driver (its vendor's SDK loaded at run time).");
+  def_start<Controller>(cls, "Starts the servo over a Controller.");
+  def_start<MechanismSet>(cls, "Starts the servo over a MechanismSet.");
+  cls.def("open", &DeviceDriver::open, "model"_a, nb::keep_alive<1, 2>(), Unlocked(),
           "Opens the device and checks it against the device model.")
-      .def(
-          "calibrate",
-          [](DeviceDriver& d) {
-            Calibration c;
-            {
-              nb::gil_scoped_release release;
-              c = d.calibrate();
-            }
-            return calibration_name(c);
-          },
-          "'ok', 'updated', or 'needs_inkwell' (the stylus must go in the inkwell).")
-      .def("start", &start<Controller>, "controller"_a, "period_s"_a = defaults.period_s,
-           "velocity_cutoff_hz"_a = defaults.velocity_cutoff_hz, "late_s"_a = defaults.late_s,
-           "fault_limit_s"_a = defaults.fault_limit_s,
-           "record_capacity"_a = defaults.record_capacity, nb::keep_alive<1, 2>(),
-           "Starts the servo over a Controller.")
-      .def("start", &start<MechanismSet>, "controller"_a, "period_s"_a = defaults.period_s,
-           "velocity_cutoff_hz"_a = defaults.velocity_cutoff_hz, "late_s"_a = defaults.late_s,
-           "fault_limit_s"_a = defaults.fault_limit_s,
-           "record_capacity"_a = defaults.record_capacity, nb::keep_alive<1, 2>(),
-           "Starts the servo over a MechanismSet.")
-      .def(
-          "stop",
-          [](DeviceDriver& d) {
-            nb::gil_scoped_release release;
-            d.stop();
-          },
-          "Zero torque, the servo stopped, the device closed (HD: the scheduler stopped, the "
-          "callback unscheduled, the device disabled; DHD: the thread joined, dhdStop, dhdClose).")
+      .def("calibrate", [](DeviceDriver& d) { return name_of(d.calibrate()); }, Unlocked(),
+           "'ok', 'updated', or 'needs_inkwell' (the stylus must go in the inkwell).")
+      .def("stop", &DeviceDriver::stop, Unlocked(),
+           "Zero torque, the servo stopped, the device closed (HD: the scheduler stopped, the "
+           "callback unscheduled, the device disabled; DHD: the thread joined, dhdStop, dhdClose).")
       .def(
           "request_stop",
           [](DeviceDriver& d) {

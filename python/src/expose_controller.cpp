@@ -49,64 +49,24 @@ nb::object step(Renderer& self, nb::handle q, nb::handle dq, double t, nb::handl
   return result;
 }
 
-#define VM_VECTOR(Type, member, doc) def_ro(#member, &Type::member, nb::rv_policy::copy, doc)
-#define VM_POSE(Type, member, doc) \
-  def_prop_ro(#member, [](const Type& o) { return Eigen::Matrix4d(o.member.matrix()); }, doc)
-
+// one property per row of VM_CYCLE_OUTPUT (include/virtmech/output_table.h)
 void expose_cycle_output(nb::module_& m) {
-  nb::class_<CycleOutput>(m, "CycleOutput", "Everything one controller cycle reports.")
-      .def(nb::init<>(), "An empty output, to be filled by Controller.step(..., out=...).")
-      .VM_VECTOR(CycleOutput, torque, "Joint torques (n,) [N·m or N]; exactly 0 on passive joints.")
-      .VM_VECTOR(CycleOutput, wrench, "Wrench applied at the handle (6,) [N; N·m], after safety.")
-      .VM_VECTOR(CycleOutput, wrench_null, "Null-space part N(W_A)(Kp e + Kv e_dot) (6,), before safety.")
-      .VM_VECTOR(CycleOutput, wrench_range, "Range-space part P(W_A)(Kp e* + Kv e*_dot) (6,), before safety.")
-      .VM_VECTOR(CycleOutput, wrench_unrendered, "Part of the commanded wrench the device cannot apply (6,).")
-      .VM_VECTOR(CycleOutput, wrench_passivity,
-                 "The part of the range term the energy tank held back (6,), before safety.")
-      .VM_VECTOR(CycleOutput, theta, "Nearest placement (m,) (W_e).")
-      .VM_VECTOR(CycleOutput, theta_star, "Un-powered placement (m,) (W_e*).")
-      .VM_VECTOR(CycleOutput, error, "e = X_V - X_R (6,) [m; rad].")
-      .VM_VECTOR(CycleOutput, error_dot,
-                 "The rate of e (6,) [m/s; rad/s] (error_velocity: 'relative' or 'handle').")
-      .VM_VECTOR(CycleOutput, error_star,
-                 "e* = X_V* - X_R at the un-powered placement theta_star (6,) [m; rad] (eq. 25).")
-      .VM_VECTOR(CycleOutput, error_star_dot, "The rate of e* (6,) [m/s; rad/s].")
-      .VM_POSE(CycleOutput, handle_pose,
-               "The device's handle pose X_R (4, 4) [m]: origin at the grip point, +z along the "
-               "stylus toward the tip.")
-      .VM_POSE(CycleOutput, mechanism_pose, "The mechanism's handle pose X_V at theta (4, 4) [m].")
-      .VM_POSE(CycleOutput, mechanism_pose_star,
-               "The mechanism's handle pose X_V* at theta_star (4, 4) [m].")
-      .def_prop_ro("active", [](const CycleOutput& o) { return joint_mask(o.active, o.theta.size()); },
-                   "Joints of the nearest placement held at a limit that acts (m,) of bool: "
-                   "locked for the filters (a one-sided limit renders contact).")
-      .def_prop_ro("active_star", [](const CycleOutput& o) { return joint_mask(o.active_star, o.theta_star.size()); },
-                   "Joints of the un-powered placement held at a limit that acts (m,).")
-      .def_ro("iterations", &CycleOutput::iterations,
-              "Gauss-Newton iterations of this cycle's nearest placement (0: its closed form).")
-      .def_ro("iterations_star", &CycleOutput::iterations_star,
-              "Gauss-Newton iterations of this cycle's un-powered placement.")
-      .def_ro("residual", &CycleOutput::residual,
-              "The nearest placement's weighted error sqrt(e^T W_e e) [m] (rotations weighted by "
-              "the length scale squared): 0 when the handle is on the mechanism.")
-      .def_ro("residual_star", &CycleOutput::residual_star,
-              "The un-powered placement's, sqrt(e*^T W_e* e*) [m]; 0 without eq. 26's range term.")
-      .def_ro("ramp", &CycleOutput::ramp, "Ramp-in factor applied, in [0, 1].")
-      .def_ro("limit_scale", &CycleOutput::limit_scale, "Factor applied by the force/torque limits.")
-      .def_ro("energy", &CycleOutput::energy,
-              "The energy tank's level [J]: the energy the rendering has absorbed (0 at the start, "
-              "less the motors' work since), at most stored_energy + passivity_max_energy_j; "
-              "below 0 a deficit, which fades the range term out (docs/theory.md, 8). 0 with "
-              "passivity off.")
-      .def_ro("stored_energy", &CycleOutput::stored_energy,
-              "What the law's springs hold [J] (the energy tank subtracts it).")
-      .def_ro("passivity_scale", &CycleOutput::passivity_scale,
-              "The range term's factor the energy tank applied, in [0, 1].")
-      .def_ro("status", &CycleOutput::status, "Status bits (virtmech.status).")
-      .def_ro("computation_time_us", &CycleOutput::computation_time_us,
-              "This cycle's own computation time [µs] (the time-stamp counter where invariant).")
-      .def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); },
-                   "The names of the status bits set, e.g. ['ramping'] while the force ramps in.")
+  nb::class_<CycleOutput> cls(m, "CycleOutput", "Everything one controller cycle reports.");
+  cls.def(nb::init<>(), "An empty output, to be filled by Controller.step(..., out=...).");
+#define VM_PY_FIELD(name, doc) cls.def_ro(#name, &CycleOutput::name, nb::rv_policy::copy, doc);
+#define VM_PY_REAL(name, value, doc) VM_PY_FIELD(name, doc)
+#define VM_PY_POSE(name, doc) \
+  cls.def_prop_ro(#name, [](const CycleOutput& o) { return Eigen::Matrix4d(o.name.matrix()); }, doc);
+#define VM_PY_LOCKS(name, of, doc) \
+  cls.def_prop_ro(#name, [](const CycleOutput& o) { return joint_mask(o.name, o.of.size()); }, doc);
+  VM_CYCLE_OUTPUT(VM_PY_FIELD, VM_PY_FIELD, VM_PY_POSE, VM_PY_LOCKS, VM_PY_FIELD, VM_PY_REAL,
+                  VM_PY_FIELD)
+#undef VM_PY_FIELD
+#undef VM_PY_REAL
+#undef VM_PY_POSE
+#undef VM_PY_LOCKS
+  cls.def_prop_ro("status_names", [](const CycleOutput& o) { return status_names(o.status); },
+                  "The names of the status bits set, e.g. ['ramping'] while the force ramps in.")
       .def_prop_ro("fault", [](const CycleOutput& o) { return (o.status & status::kFaultMask) != 0; },
                    "True when a fault bit is set (status & 0xFF00): the torque is zero.");
 }

@@ -13,7 +13,7 @@ NB_MODULE(_core, m) {
   // status bits (re-exported by virtmech.status)
   m.attr("STATUS_OK") = status::kOk;
   m.attr("STATUS_FAULT_MASK") = status::kFaultMask;
-  for (const auto& [bit, name] : status_bits()) {
+  for (const auto& [bit, name] : status::kNames) {
     std::string attr = std::string("STATUS_") + name;
     for (char& c : attr) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
     m.attr(attr.c_str()) = bit;

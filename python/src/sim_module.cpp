@@ -125,6 +125,15 @@ void expose_layouts(nb::module_& m) {
 #undef VM_LOG_MEMBER
 }
 
+// ServoLoop(controller, model, data, settings, plan_layout, log_layout) over a Renderer
+template <class Renderer>
+void def_init(nb::class_<PyServoLoop>& loop, const char* doc) {
+  loop.def(nb::init<Renderer&, std::uintptr_t, std::uintptr_t, const LoopSettings&, const nb::dict&,
+                    const nb::dict&>(),
+           "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
+           nb::keep_alive<1, 2>(), doc);
+}
+
 void expose_loop(nb::module_& m) {
   nb::class_<LoopSettings>(m, "LoopSettings", "How the device sits in the MuJoCo model, and the simulated driver.")
       .def(nb::init<>())
@@ -154,21 +163,12 @@ void expose_loop(nb::module_& m) {
           "The held torque (dof,): set it between the loop's runs.");
 
   nb::class_<PyServoLoop> loop(m, "ServoLoop", "The servo-rate loop (sim/include/virtmech/sim/servo_loop.hpp).");
-  loop.def(nb::init<HeldTorque&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
-                    const nb::dict&, const nb::dict&>(),
-           "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
-           nb::keep_alive<1, 2>(), "The loop applying a HeldTorque's torque (controller: it).")
-      .def(nb::init<virtmech::MechanismSet&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
-                    const nb::dict&, const nb::dict&>(),
-           "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
-           nb::keep_alive<1, 2>(), "The loop rendering a MechanismSet (controller: the set).")
-      .def(nb::init<virtmech::Controller&, std::uintptr_t, std::uintptr_t, const LoopSettings&,
-                    const nb::dict&, const nb::dict&>(),
-           "controller"_a, "model"_a, "data"_a, "settings"_a, "plan_layout"_a, "log_layout"_a,
-           nb::keep_alive<1, 2>(),
-           "model, data: the addresses of an mjModel and its mjData (MjModel._address); the "
-           "caller keeps them alive. plan_layout, log_layout: {field: column}.")
-      .def_prop_ro("log_columns", [](const PyServoLoop& s) { return s.loop.log_layout().columns; })
+  def_init<HeldTorque>(loop, "The loop applying a HeldTorque's torque (controller: it).");
+  def_init<virtmech::MechanismSet>(loop, "The loop rendering a MechanismSet (controller: the set).");
+  def_init<virtmech::Controller>(
+      loop, "model, data: the addresses of an mjModel and its mjData (MjModel._address); the "
+            "caller keeps them alive. plan_layout, log_layout: {field: column}.");
+  loop      .def_prop_ro("log_columns", [](const PyServoLoop& s) { return s.loop.log_layout().columns; })
       .def_prop_ro("hand_attached", [](const PyServoLoop& s) { return s.loop.hand_attached(); })
       .def_prop_ro("control_time_s", [](const PyServoLoop& s) { return s.loop.control_time_s(); },
                    "wall time in the controller's (or set's) step since construction [s]")

@@ -139,21 +139,11 @@ void vm_driver_statistics(const vm_driver* driver, vm_driver_stats* out) {
   *out = vm_driver_stats{};
   if (driver == nullptr) return;
   const ServoStats s = driver->servo.stats();
-  out->ticks = s.ticks;
-  out->late = s.late;
-  out->watchdog = s.watchdog;
-  out->zero_ticks = s.zero_ticks;
-  out->dropped = s.dropped;
-  out->elapsed_s = s.elapsed_s;
-  out->rate_hz = s.rate_hz;
-  out->worst_tick_us = s.worst_tick_us;
-  out->worst_gap_s = s.worst_gap_s;
-  out->force_n = s.force_n;
-  out->status = s.status;
-  out->flags = s.flags;
-  out->stop = static_cast<int>(s.reason);
-  out->device_error = s.device_error;
-  out->fault_status = s.fault_status;
+#define VM_STATS_COPY(name, doc) out->name = s.name;
+#define VM_STATS_STOP(name, doc) out->name = static_cast<int>(s.name);
+  VM_SERVO_STATS(VM_STATS_COPY, VM_STATS_COPY, VM_STATS_COPY, VM_STATS_STOP)
+#undef VM_STATS_COPY
+#undef VM_STATS_STOP
 }
 
 }  // extern "C"

@@ -597,7 +597,7 @@ TEST(Allocation, ForceDimensionTickAllocatesNothing) {
   driver.stop();
   unsetenv("VIRTMECH_STANDIN_CONFIG");
   EXPECT_GT(ticks, 200u);
-  EXPECT_EQ(st.reason, drivers::StopReason::kNone);
+  EXPECT_EQ(st.stop, drivers::StopReason::kNone);
   EXPECT_GT(st.force_n, 0.0);  // the mechanism is rendered
   EXPECT_EQ(n.allocations, 0);
   EXPECT_EQ(n.frees, 0);

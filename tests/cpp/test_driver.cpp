@@ -196,7 +196,7 @@ TEST_F(Running, ReadErrorZeroesThatTickAndEveryLaterOne) {
   run_ticks(servo, 401, 450, tau);
   EXPECT_TRUE(all_zero(tau));
   const ServoStats st = servo.stats();
-  EXPECT_EQ(st.reason, StopReason::kDeviceError);
+  EXPECT_EQ(st.stop, StopReason::kDeviceError);
   EXPECT_EQ(st.device_error, 0x0302u);
   // a later stop request does not hide the cause
   servo.request_stop();
@@ -265,7 +265,7 @@ TEST(DriverServo, ImplausibleReadingsZeroTheTorqueThenEndTheRun) {
     EXPECT_TRUE(all_zero(tau)) << k;
   }
   const ServoStats st = servo.stats();
-  EXPECT_EQ(st.reason, StopReason::kFaultHeld);
+  EXPECT_EQ(st.stop, StopReason::kFaultHeld);
   EXPECT_EQ(st.fault_status, status::kFaultOutOfRange);
   run_ticks(servo, 700, 710, tau);  // plausible again: the run has ended all the same
   EXPECT_TRUE(all_zero(tau));
@@ -495,7 +495,7 @@ TEST(OpenHaptics, RunsTheServoAndStopsWithZeroTorque) {
   d.stop();
   EXPECT_GT(running.ticks, 100u);
   EXPECT_GT(running.force_n, 0.0);
-  EXPECT_EQ(running.reason, StopReason::kNone);
+  EXPECT_EQ(running.stop, StopReason::kNone);
   const auto s = standin.summary();
   EXPECT_EQ(s.at("priorities"), "0 65535");  // the calibration check, then the servo
   EXPECT_EQ(s.at("sets_outside_frame"), "0");
@@ -522,7 +522,7 @@ TEST(OpenHaptics, CommErrorMidRunEndsWithZeroTorque) {
   }
   const ServoStats st = d.servo()->stats();
   d.stop();
-  EXPECT_EQ(st.reason, StopReason::kDeviceError);
+  EXPECT_EQ(st.stop, StopReason::kDeviceError);
   EXPECT_EQ(st.device_error, 0x0302u);
   EXPECT_EQ(d.describe_error(st.device_error).rfind("HD_COMM_ERROR (0x0302): ", 0), 0u);
   const auto s = standin.summary();

@@ -46,6 +46,9 @@ enum class Calibration : int {
   kUpdated = 1,      //!< it was brought up to date
   kNeedsInkwell = 2  //!< the user must put the stylus in the inkwell (then call again)
 };
+/// Its name: "ok", "updated" or "needs_inkwell".
+const char* name_of(Calibration calibration) noexcept;
+
 
 /// A failure of the lifecycle, with the message the user reads.
 class DriverError : public std::runtime_error {

@@ -15,6 +15,7 @@
 #include <limits>
 
 #include "virtmech/controller.hpp"
+#include "virtmech/drivers/servo_stats_table.h"
 #include "virtmech/drivers/spsc_ring.hpp"
 #include "virtmech/mechanism_set.hpp"
 #include "virtmech/velocity_filter.hpp"
@@ -31,6 +32,10 @@ constexpr std::uint32_t kFaultHeld = 1u << 3;    //!< the renderer faulted for f
 constexpr std::uint32_t kStopping = 1u << 4;     //!< a stop was requested
 constexpr std::uint32_t kBadReading = 1u << 5;   //!< a joint reading was not finite
 constexpr std::uint32_t kZeroMask = kWatchdog | kDeviceError | kFaultHeld | kStopping;
+/// Each flag's name, as Python's virtmech._driver.FLAGS spells it.
+inline constexpr BitName kNames[] = {{kLate, "late"},           {kWatchdog, "watchdog"},
+                                     {kDeviceError, "device_error"}, {kFaultHeld, "fault_held"},
+                                     {kStopping, "stopping"},   {kBadReading, "bad_reading"}};
 }  // namespace driver_flag
 
 /// Why the servo commands zero torque for good (the first cause wins).
@@ -40,6 +45,9 @@ enum class StopReason : int {
   kDeviceError = 2,  //!< the device reported an error (device_error())
   kFaultHeld = 3,    //!< the renderer's faults (implausible readings) lasted fault_limit_s
 };
+/// The reason's name: "running", "requested", "device_error" or "fault_held".
+const char* name_of(StopReason reason) noexcept;
+
 
 /// Settings of the servo tick.
 struct ServoSettings {
@@ -94,21 +102,15 @@ const RecordField* record_fields(int* count) noexcept;
 
 /// Counters of the servo, readable from any thread while it runs.
 struct ServoStats {
-  std::uint64_t ticks = 0;           //!< ticks run
-  std::uint64_t late = 0;            //!< ticks later than period + late_s
-  std::uint64_t watchdog = 0;        //!< ticks whose force the watchdog zeroed
-  std::uint64_t zero_ticks = 0;      //!< ticks that commanded zero torque (any flag)
-  std::uint64_t dropped = 0;         //!< records dropped (the ring was full)
-  double elapsed_s = 0.0;            //!< time stamp of the last tick [s]
-  double rate_hz = 0.0;              //!< measured: ticks per second between first and last
-  double worst_tick_us = 0.0;        //!< the longest tick [µs]
-  double worst_gap_s = 0.0;          //!< the longest gap between ticks [s]
-  double force_n = 0.0;              //!< |f| of the last tick [N]
-  std::uint32_t status = 0;          //!< the last tick's renderer status
-  std::uint32_t flags = 0;           //!< the last tick's driver flags
-  StopReason reason = StopReason::kNone;
-  std::uint32_t device_error = 0;    //!< the device error that stopped it (kDeviceError)
-  std::uint32_t fault_status = 0;    //!< the fault bits that stopped it (kFaultHeld)
+#define VM_STATS_COUNT(name, doc) std::uint64_t name = 0;
+#define VM_STATS_REAL(name, doc) double name = 0.0;
+#define VM_STATS_BITS(name, doc) std::uint32_t name = 0;
+#define VM_STATS_STOP(name, doc) StopReason name = StopReason::kNone;
+  VM_SERVO_STATS(VM_STATS_COUNT, VM_STATS_REAL, VM_STATS_BITS, VM_STATS_STOP)
+#undef VM_STATS_COUNT
+#undef VM_STATS_REAL
+#undef VM_STATS_BITS
+#undef VM_STATS_STOP
 };
 
 class DriverServo {
