@@ -61,9 +61,12 @@ std::vector<Eigen::Vector3d> curve_polyline(const Curve& curve, int count = 200)
 /// +-unbounded).
 Sketch::Mesh surface_mesh(const Surface& surface, int count = 32, double unbounded = 0.1);
 
-/// A serial chain's joints as tables ({type, axis, origin (4, 4), lower, upper}), and a
-/// chain from the scenario format's tables ({type, axis, origin, origin_rotation, lower,
-/// upper}).
+/// Sets a pose as the scenario format writes it: its position and its rotation vector.
+Params& set_pose(Params& p, const std::string& position, const std::string& rotation,
+                 const Pose& T);
+
+/// A serial chain's joints as the scenario format's tables ({type, axis, origin,
+/// origin_rotation, lower, upper}; an infinite limit left out), and a chain from them.
 std::vector<Params> describe_joints(const std::vector<Joint>& joints);
 std::vector<Joint> joints_from(const std::vector<Params>& tables);
 /// The scenario format's fields of one joint.

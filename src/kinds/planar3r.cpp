@@ -14,21 +14,23 @@ void add_planar3r(Registry& r) {
                            "the actuated joints' torque limit", true),
               number_param("max_force", Planar3RDefaults::kMaxForce, 0.0, 1000.0, "N",
                            "force limit", true),
-              point_param("base_position", Eigen::Vector3d::Zero(), "the base [m]")};
+              point_param("base_position", Eigen::Vector3d::Zero(), "the base [m]"),
+              array_param("base_rotation", {3}, std::vector<double>{0.0, 0.0, 0.0}, "rad",
+                          "the base's rotation vector")};
   k.type = typeid(Planar3R);
   k.make = [](const Params& p) {
-    Pose base = Pose::Identity();
-    base.translation() = p.vector3("base_position");
+    const Pose base = pose_from(p.vector3("base_position"), p.vector3("base_rotation"));
     return std::make_shared<const Planar3R>(p.number("link1"), p.number("link2"), base,
                                             p.number("torque_limit"), p.number("max_force"));
   };
   k.describe = [](const Device& dev) {
     const auto& d = static_cast<const Planar3R&>(dev);
-    return Params("Planar3R")
-        .set("link1", d.link1())
+    Params p("Planar3R");
+    p.set("link1", d.link1())
         .set("link2", d.link2())
         .set("torque_limit", d.torque_limit()[0])
         .set("max_force", d.max_force());
+    return set_pose(p, "base_position", "base_rotation", d.chain().base());
   };
   r.add(std::move(k));
 }

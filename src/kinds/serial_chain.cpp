@@ -25,13 +25,13 @@ void add_serial_chain(Registry& r) {
         joints_from(p.tables("joints")), pose_from(p.vector3("handle"), p.vector3("handle_rotation")),
         pose_from(p.vector3("base_position"), p.vector3("base_rotation")), p.number("length_scale"));
   };
-  k.describe = [](const Mechanism& m) {
+  k.describe = [](const Mechanism& m) {  // the kind's parameters: make() rebuilds it
     const auto& a = static_cast<const SerialChain&>(m);
-    return Params("SerialChain")
-        .set("joints", describe_joints(a.chain().joints()))
-        .set("handle", a.chain().handle())
-        .set("base", a.chain().base())
-        .set("length_scale", a.length_scale());
+    Params p("SerialChain");
+    p.set("joints", describe_joints(a.chain().joints()));
+    set_pose(p, "handle", "handle_rotation", a.chain().handle());
+    set_pose(p, "base_position", "base_rotation", a.chain().base());
+    return p.set("length_scale", a.length_scale());
   };
   r.add(std::move(k));
 }

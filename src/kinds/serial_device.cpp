@@ -11,8 +11,8 @@ void add_serial_device(Registry& r) {
   k.params = {
       tables_param("joints", joint_fields(), "the chain's joints from its base"),
       bools_param("actuated", -1, std::nullopt, "one true or false per joint"),
-      array_param("torque_limit", {-1}, std::nullopt, "N·m or N",
-                  "one limit per joint; 0 where passive"),
+      optional(array_param("torque_limit", {-1}, std::nullopt, "N·m or N",
+                           "one limit per joint; 0 where passive; none: no limit")),
       optional(number_param("max_force", std::nullopt, 0.0, 1000.0, "N", "force limit", true)),
       optional(number_param("max_torque", std::nullopt, 0.0, 1000.0, "N·m", "moment limit",
                             true)),
@@ -24,13 +24,20 @@ void add_serial_device(Registry& r) {
       point_param("base_position", Eigen::Vector3d::Zero(), "the chain's base [m]"),
       array_param("base_rotation", {3}, std::vector<double>{0.0, 0.0, 0.0}, "rad",
                   "its rotation vector"),
-      string_param("name", std::string("SerialDevice"), {}, "the device's name")};
+      string_param("name", std::string("SerialDevice"), {}, "the device's name"),
+      optional(array_param("coupling", {-1, -1}, std::nullopt, "1",
+                           "C of the joint map s = C q + c0 from the device's joints q to the "
+                           "chain's s; none: the identity")),
+      optional(array_param("coupling_offset", {-1}, std::nullopt, "rad or m",
+                           "c0 of that map; none: zero"))};
   k.type = typeid(SerialDevice);
   k.make = [](const Params& p) {
     DeviceLimits L;
     L.actuated = p.bools("actuated");
-    const Eigen::VectorXd t = p.vector("torque_limit");
-    L.torque_limit.assign(t.data(), t.data() + t.size());
+    if (p.has("torque_limit")) {
+      const Eigen::VectorXd t = p.vector("torque_limit");
+      L.torque_limit.assign(t.data(), t.data() + t.size());
+    }
     L.max_force = p.has("max_force") ? p.number("max_force") : kInf;
     L.max_torque = p.has("max_torque") ? p.number("max_torque") : kInf;
     L.stiffness = p.number("stiffness");
@@ -38,25 +45,28 @@ void add_serial_device(Registry& r) {
     const KinematicChain chain(pose_from(p.vector3("base_position"), p.vector3("base_rotation")),
                                joints_from(p.tables("joints")),
                                pose_from(p.vector3("handle"), p.vector3("handle_rotation")));
-    return std::make_shared<const SerialDevice>(p.string("name"), chain, L);
+    const int n = chain.dof();
+    const JointMatrix C = p.has("coupling") ? JointMatrix(p.matrix("coupling"))
+                                            : JointMatrix(JointMatrix::Identity(n, n));
+    const JointVector c0 = p.has("coupling_offset") ? JointVector(p.vector("coupling_offset"))
+                                                    : JointVector(JointVector::Zero(n));
+    return std::make_shared<const SerialDevice>(p.string("name"), chain, L, C, c0);
   };
-  k.describe = [](const Device& dev) {
+  k.describe = [](const Device& dev) {  // the kind's parameters: make() rebuilds it
     const auto& d = static_cast<const SerialDevice&>(dev);
     std::vector<bool> actuated;
     for (int i = 0; i < d.dof(); ++i) actuated.push_back(d.actuated(i));
-    return Params("Device")
-        .set("name", d.name().c_str())
-        .set("joints", describe_joints(d.chain().joints()))
-        .set("handle", d.chain().handle())
-        .set("base", d.chain().base())
-        .set("actuated", actuated)
-        .set_vector("torque_limit", d.torque_limit())
+    Params p("Device");
+    p.set("joints", describe_joints(d.chain().joints())).set("actuated", actuated);
+    if (d.torque_limit().allFinite()) p.set_vector("torque_limit", d.torque_limit());
+    if (std::isfinite(d.max_force())) p.set("max_force", d.max_force());  // none: no limit
+    if (std::isfinite(d.max_torque())) p.set("max_torque", d.max_torque());
+    p.set("stiffness", d.stiffness()).set("damping", d.damping());
+    set_pose(p, "handle", "handle_rotation", d.chain().handle());
+    set_pose(p, "base_position", "base_rotation", d.chain().base());
+    return p.set("name", d.name().c_str())
         .set_matrix("coupling", d.coupling())
-        .set_vector("coupling_offset", d.coupling_offset())
-        .set("max_force", d.max_force())
-        .set("max_torque", d.max_torque())
-        .set("stiffness", d.stiffness())
-        .set("damping", d.damping());
+        .set_vector("coupling_offset", d.coupling_offset());
   };
   r.add(std::move(k));
 }

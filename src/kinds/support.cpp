@@ -2,6 +2,7 @@
 #include <cmath>
 
 #include "kinds.hpp"
+#include "virtmech/se3.hpp"
 #include "virtmech/settings.hpp"
 
 namespace virtmech::kinds {
@@ -75,15 +76,21 @@ Sketch::Mesh surface_mesh(const Surface& surface, int count, double unbounded) {
   return mesh;
 }
 
+Params& set_pose(Params& p, const std::string& position, const std::string& rotation,
+                 const Pose& T) {
+  return p.set(position, Eigen::Vector3d(T.translation()))
+      .set(rotation, so3_log(Eigen::Matrix3d(T.linear())));
+}
+
 std::vector<Params> describe_joints(const std::vector<Joint>& joints) {
   std::vector<Params> out;
   for (const Joint& j : joints) {
     Params p;
     p.set("type", name_of(j.type));
     p.set("axis", j.axis);
-    p.set("origin", j.origin);
-    p.set("lower", j.lower);
-    p.set("upper", j.upper);
+    set_pose(p, "origin", "origin_rotation", j.origin);
+    if (std::isfinite(j.lower)) p.set("lower", j.lower);  // none: no limit
+    if (std::isfinite(j.upper)) p.set("upper", j.upper);
     out.push_back(std::move(p));
   }
   return out;

@@ -31,11 +31,20 @@ def patch():
 TILTED = np.array([0.2, 0.1, 0.97]) / np.linalg.norm([0.2, 0.1, 0.97])
 
 
+def rotated(p, w) -> np.ndarray:
+    """The pose (4, 4) at position p turned by the rotation vector w."""
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = vm.so3_exp(w), p
+    return T
+
+
 def same(a, b) -> bool:
     """Equal descriptions: the same keys, numbers equal to rounding (a direction given again
     is normalised again)."""
     if isinstance(a, dict):
         return isinstance(b, dict) and list(a) == list(b) and all(same(a[k], b[k]) for k in a)
+    if isinstance(a, list) and a and isinstance(a[0], dict):  # tables (a chain's joints)
+        return isinstance(b, list) and len(a) == len(b) and all(map(same, a, b))
     if isinstance(a, (list, float)):
         return np.allclose(a, b, rtol=1e-15, atol=1e-15)
     return a == b
@@ -56,6 +65,15 @@ MECHANISMS = {
     "sphere-unilateral": lambda: vm.SurfaceProbe(vm.Sphere([0, 0, -0.1], 0.05), 0.06, True),
     "curve": lambda: vm.CurveGuide(letter(), 0.07, [0, 0, 1]),
     "path": lambda: vm.HandlePath(letter(), [0, 1, 0]),
+}
+
+#: a kind without a distance measure or constrained directions of its own
+CHAINS = {
+    "chain": lambda: vm.SerialChain(
+        [vm.Joint("revolute", [0, 0, 1], lower=-2.0, upper=2.5),
+         vm.Joint("prismatic", [1, 0, 0], rotated([0.1, 0.02, 0.05], [0.3, -0.2, 0.4]))],
+        handle=rotated([0.0, 0.0, 0.08], [3.0, 0.1, 0.0]),
+        base=rotated([0.01, -0.02, 0.1], [0.0, 0.5, 0.0]), length_scale=0.07),
 }
 
 
@@ -116,9 +134,9 @@ def test_constrained_directions_are_the_definitions(name):
         assert abs(np.linalg.norm(got[k]) - 1.0) < 1e-14
 
 
-@pytest.mark.parametrize("name", sorted(MECHANISMS))
+@pytest.mark.parametrize("name", sorted(MECHANISMS) + sorted(CHAINS))
 def test_to_dict_rebuilds_the_mechanism_through_its_kind(name):
-    m = MECHANISMS[name]()
+    m = {**MECHANISMS, **CHAINS}[name]()
     d = m.to_dict()
     kind = next(k for k in vm.kinds("mechanism") if k["name"] == d["type"])
     assert list(d) == ["type"] + [p["name"] for p in kind["params"]]
@@ -135,7 +153,41 @@ def test_shapes_and_devices_describe_themselves_with_their_kinds_keys():
         assert same(vm.make_shape(d).to_dict(), d)
     omni = vm.PhantomOmni(l1=0.14)
     assert omni.to_dict()["l1"] == 0.14 and omni.l1 == 0.14
-    assert list(vm.Planar3R().to_dict()) == ["type", "link1", "link2", "torque_limit", "max_force"]
+
+
+DEVICES = {
+    "omni": lambda: vm.PhantomOmni(l1=0.14),
+    "planar3r": lambda: vm.Planar3R(0.25, 0.15, base=rotated([0.1, 0.0, -0.05], [0.0, 0.0, 0.7])),
+    "cartesian": lambda: vm.make_device({"type": "CartesianDevice", "model": "omega.6"}),
+    # no limits given: the description leaves them out, as the scenario format does
+    "chain-unlimited": lambda: vm.Device([vm.Joint("revolute", [0, 0, 1])], [True]),
+    "chain-coupled": lambda: vm.Device(
+        [vm.Joint("revolute", [0, 0, 1], lower=-2.0, upper=2.0),
+         vm.Joint("revolute", [0, 1, 0], rotated([0.0, 0.0, 0.1], [0.2, 0.0, 0.0]), -1.5, 1.5),
+         vm.Joint("prismatic", [0, 0, 1], [0.1, 0.0, 0.0], 0.0, 0.05)],
+        [True, True, False], handle=rotated([0.0, 0.0, 0.05], [0.0, 0.3, 0.0]),
+        base=rotated([0.0, 0.1, 0.2], [0.1, 0.2, 0.3]), torque_limit=[1.5, 2.0, 0.0],
+        max_force=4.0, max_torque=0.5, name="coupled", coupling=[[1, 0, 0], [-1, 1, 0], [0, 0, 1]],
+        coupling_offset=[0.0, 0.2, 0.0]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(DEVICES))
+def test_to_dict_rebuilds_the_device_through_its_kind(name):
+    """A device's description (run.json's) is its kind's parameters, in the kind's order, from
+    which make_device rebuilds the same device: the same kinematics, limits and actuation."""
+    dev = DEVICES[name]()
+    d = dev.to_dict()
+    kind = next(k for k in vm.kinds("device") if k["name"] == d["type"])
+    names = [p["name"] for p in kind["params"]]
+    assert list(d)[1:] == [k for k in names if k in d]
+    rebuilt = vm.make_device(d)
+    assert type(rebuilt) is type(dev) and same(rebuilt.to_dict(), d)
+    q = (np.asarray(dev.lower).clip(-1, 1) + np.asarray(dev.upper).clip(-1, 1)) / 2 + 0.01
+    np.testing.assert_allclose(rebuilt.forward(q), dev.forward(q), rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(rebuilt.actuated, dev.actuated)
+    np.testing.assert_array_equal(rebuilt.torque_limit, dev.torque_limit)
+    assert (rebuilt.max_force, rebuilt.max_torque) == (dev.max_force, dev.max_torque)
 
 
 def test_sketches_draw_the_mechanism_where_it_is():
