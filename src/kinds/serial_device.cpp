@@ -45,6 +45,9 @@ void add_serial_device(Registry& r) {
     const KinematicChain chain(pose_from(p.vector3("base_position"), p.vector3("base_rotation")),
                                joints_from(p.tables("joints")),
                                pose_from(p.vector3("handle"), p.vector3("handle_rotation")));
+    if (!p.has("coupling") && !p.has("coupling_offset")) {  // the chain's joints and limits
+      return std::make_shared<const SerialDevice>(p.string("name"), chain, L);
+    }
     const int n = chain.dof();
     const JointMatrix C = p.has("coupling") ? JointMatrix(p.matrix("coupling"))
                                             : JointMatrix(JointMatrix::Identity(n, n));
@@ -58,15 +61,16 @@ void add_serial_device(Registry& r) {
     for (int i = 0; i < d.dof(); ++i) actuated.push_back(d.actuated(i));
     Params p("Device");
     p.set("joints", describe_joints(d.chain().joints())).set("actuated", actuated);
-    if (d.torque_limit().allFinite()) p.set_vector("torque_limit", d.torque_limit());
+    // a limit is never left out where one joint has it (an infinite one then names itself)
+    if (d.torque_limit().array().isFinite().any()) p.set_vector("torque_limit", d.torque_limit());
     if (std::isfinite(d.max_force())) p.set("max_force", d.max_force());  // none: no limit
     if (std::isfinite(d.max_torque())) p.set("max_torque", d.max_torque());
     p.set("stiffness", d.stiffness()).set("damping", d.damping());
     set_pose(p, "handle", "handle_rotation", d.chain().handle());
     set_pose(p, "base_position", "base_rotation", d.chain().base());
-    return p.set("name", d.name().c_str())
-        .set_matrix("coupling", d.coupling())
-        .set_vector("coupling_offset", d.coupling_offset());
+    p.set("name", d.name().c_str());
+    if (d.coupling().isIdentity(0.0) && d.coupling_offset().isZero(0.0)) return p;  // none
+    return p.set_matrix("coupling", d.coupling()).set_vector("coupling_offset", d.coupling_offset());
   };
   r.add(std::move(k));
 }

@@ -161,6 +161,11 @@ DEVICES = {
     "cartesian": lambda: vm.make_device({"type": "CartesianDevice", "model": "omega.6"}),
     # no limits given: the description leaves them out, as the scenario format does
     "chain-unlimited": lambda: vm.Device([vm.Joint("revolute", [0, 0, 1])], [True]),
+    # uncoupled: the device's joint limits are its chain's
+    "chain-limited": lambda: vm.Device(
+        [vm.Joint("revolute", [0, 0, 1], lower=-2.0, upper=2.0),
+         vm.Joint("prismatic", [1, 0, 0], [0.0, 0.0, 0.1], -0.05, 0.05)],
+        [True, False], torque_limit=[3.0, 0.0], max_force=8.0),
     "chain-coupled": lambda: vm.Device(
         [vm.Joint("revolute", [0, 0, 1], lower=-2.0, upper=2.0),
          vm.Joint("revolute", [0, 1, 0], rotated([0.0, 0.0, 0.1], [0.2, 0.0, 0.0]), -1.5, 1.5),
@@ -185,9 +190,21 @@ def test_to_dict_rebuilds_the_device_through_its_kind(name):
     assert type(rebuilt) is type(dev) and same(rebuilt.to_dict(), d)
     q = (np.asarray(dev.lower).clip(-1, 1) + np.asarray(dev.upper).clip(-1, 1)) / 2 + 0.01
     np.testing.assert_allclose(rebuilt.forward(q), dev.forward(q), rtol=0, atol=1e-15)
-    np.testing.assert_array_equal(rebuilt.actuated, dev.actuated)
+    for limit in ("lower", "upper", "home", "actuated", "max_velocity"):
+        np.testing.assert_array_equal(getattr(rebuilt, limit), getattr(dev, limit), err_msg=limit)
     np.testing.assert_array_equal(rebuilt.torque_limit, dev.torque_limit)
     assert (rebuilt.max_force, rebuilt.max_torque) == (dev.max_force, dev.max_torque)
+
+
+def test_a_torque_limit_is_never_left_out_of_a_description():
+    """One joint's limit given, the other's not: the description keeps the vector (it does not
+    drop the given limit), and making a device of it names the parameter."""
+    dev = vm.Device([vm.Joint("revolute", [0, 0, 1]), vm.Joint("revolute", [0, 1, 0])],
+                    [True, True], torque_limit=[1.5, np.inf])
+    d = dev.to_dict()
+    assert d["torque_limit"][0] == 1.5
+    with pytest.raises(ValueError, match="torque_limit"):
+        vm.make_device(d)
 
 
 def test_sketches_draw_the_mechanism_where_it_is():
