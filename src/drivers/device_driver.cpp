@@ -39,17 +39,6 @@ void DeviceDriver::open(const Device& model) {
   open_ = true;
 }
 
-const char* name_of(Calibration calibration) noexcept {
-  switch (calibration) {
-    case Calibration::kOk:
-      return "ok";
-    case Calibration::kUpdated:
-      return "updated";
-    default:
-      return "needs_inkwell";
-  }
-}
-
 Calibration DeviceDriver::calibrate() {
   if (!open_) throw std::logic_error("calibrate: open() the device first");
   return calibrate_device();

@@ -119,19 +119,6 @@ void DriverServo::reset() noexcept {
   reason_.store(static_cast<int>(StopReason::kNone), std::memory_order_release);
 }
 
-const char* name_of(StopReason reason) noexcept {
-  switch (reason) {
-    case StopReason::kRequested:
-      return "requested";
-    case StopReason::kDeviceError:
-      return "device_error";
-    case StopReason::kFaultHeld:
-      return "fault_held";
-    default:
-      return "running";
-  }
-}
-
 void DriverServo::stop_for(StopReason reason) noexcept {
   int none = static_cast<int>(StopReason::kNone);
   reason_.compare_exchange_strong(none, static_cast<int>(reason), std::memory_order_acq_rel);

@@ -202,6 +202,8 @@ TEST(CApi, EveryDeviceMechanismAndOptionMatchesTheCppCycle) {
       for (int i = 0; i < 6; ++i) ASSERT_EQ(diag.wrench[i], out.wrench[i]) << step;
       for (int i = 0; i < 6; ++i) ASSERT_EQ(diag.wrench_passivity[i], out.wrench_passivity[i]);
       ASSERT_EQ(diag.energy, out.energy) << step;
+      ASSERT_EQ(diag.stored_energy, out.stored_energy) << step;
+      ASSERT_EQ(diag.passivity_scale, out.passivity_scale) << step;
       ASSERT_EQ(diag.active, out.active);
       ASSERT_EQ(diag.active_star, out.active_star);
     }

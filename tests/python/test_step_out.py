@@ -30,6 +30,20 @@ def test_out_and_torque_are_filled_in_place_with_the_cycle_results():
         assert np.array_equal(out.wrench, ref.wrench) and out.status == ref.status
 
 
+def test_an_empty_output_holds_no_stale_numbers():
+    """Before its first cycle an output reads as no force at all: zero vectors, identity
+    poses, no joints, full scales, status ok (VM_CYCLE_OUTPUT's first values)."""
+    out = vm.CycleOutput()
+    for name in ("wrench", "wrench_null", "wrench_range", "wrench_unrendered",
+                 "wrench_passivity", "error", "error_dot", "error_star", "error_star_dot"):
+        assert np.array_equal(getattr(out, name), np.zeros(6)), name
+    for name in ("handle_pose", "mechanism_pose", "mechanism_pose_star"):
+        assert np.array_equal(getattr(out, name), np.eye(4)), name
+    assert out.torque.shape == (0,) and out.theta.shape == (0,) and out.active.shape == (0,)
+    assert (out.ramp, out.limit_scale, out.passivity_scale, out.energy) == (0.0, 1.0, 1.0, 0.0)
+    assert out.status == 0 and out.status_names == [] and not out.fault
+
+
 def peak_bytes_over(f, cycles):
     """Peak of Python-traced memory above its level before `cycles` calls of f, and the
     change in the level after them."""

@@ -46,9 +46,21 @@ enum class Calibration : int {
   kUpdated = 1,      //!< it was brought up to date
   kNeedsInkwell = 2  //!< the user must put the stylus in the inkwell (then call again)
 };
-/// Its name: "ok", "updated" or "needs_inkwell".
-const char* name_of(Calibration calibration) noexcept;
+}  // namespace virtmech::drivers
 
+/// The calibration's names (name_of, settings.hpp), as DeviceDriver.calibrate() returns them.
+template <>
+struct virtmech::EnumNames<virtmech::drivers::Calibration> {
+  static constexpr EnumName kValues[] = {
+      {static_cast<int>(drivers::Calibration::kOk), "ok",
+       "the calibration was up to date"},
+      {static_cast<int>(drivers::Calibration::kUpdated), "updated",
+       "it was brought up to date"},
+      {static_cast<int>(drivers::Calibration::kNeedsInkwell), "needs_inkwell",
+       "the stylus must go in the inkwell"}};
+};
+
+namespace virtmech::drivers {
 
 /// A failure of the lifecycle, with the message the user reads.
 class DriverError : public std::runtime_error {

@@ -45,9 +45,23 @@ enum class StopReason : int {
   kDeviceError = 2,  //!< the device reported an error (device_error())
   kFaultHeld = 3,    //!< the renderer's faults (implausible readings) lasted fault_limit_s
 };
-/// The reason's name: "running", "requested", "device_error" or "fault_held".
-const char* name_of(StopReason reason) noexcept;
+}  // namespace virtmech::drivers
 
+/// The reasons' names (name_of, settings.hpp): what Python's stats and run.json write.
+template <>
+struct virtmech::EnumNames<virtmech::drivers::StopReason> {
+  static constexpr EnumName kValues[] = {
+      {static_cast<int>(drivers::StopReason::kNone), "running",
+       "the servo runs"},
+      {static_cast<int>(drivers::StopReason::kRequested), "requested",
+       "request_stop(): Ctrl-C, a signal, the end of the run"},
+      {static_cast<int>(drivers::StopReason::kDeviceError), "device_error",
+       "the device reported an error"},
+      {static_cast<int>(drivers::StopReason::kFaultHeld), "fault_held",
+       "the renderer's faults lasted fault_limit_s"}};
+};
+
+namespace virtmech::drivers {
 
 /// Settings of the servo tick.
 struct ServoSettings {
