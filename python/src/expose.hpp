@@ -24,6 +24,19 @@ struct SettingsDoc {
 SettingsDoc settings_doc(const std::vector<SettingInfo>& infos, const std::string& head,
                          const std::string& intro);
 
+/// `made`, once its kind has rebuilt it from its description (make_device / make_mechanism):
+/// a constructor that is not its kind's (Device, SerialChain, Planar3R) refuses what the kind
+/// refuses (its ranges, one source), and what it makes is what run.json's table rebuilds.
+template <class T>
+T rebuildable(T made) {
+  if constexpr (std::is_base_of_v<Device, T>) {
+    make_device(describe(made), "");
+  } else {
+    make_mechanism(describe(made), "");
+  }
+  return made;
+}
+
 /// Binds the constructor and the parameter properties of a registered kind's class: its
 /// parameters in the kind's order (positional or keywords), made by the kind's factory.
 template <class T, class Cls, class Make>

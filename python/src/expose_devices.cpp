@@ -1,6 +1,7 @@
 // Devices (include/virtmech/device.hpp). The Omni's and the Cartesian devices' constructors
 // and parameters are their kinds' (src/kinds/phantom_omni.cpp, cartesian_device.cpp); a
-// serial-chain device and the Planar3R take a chain and poses as C++ does.
+// serial-chain device and the Planar3R take a chain and poses as C++ does, and refuse what
+// their kinds refuse (rebuildable()).
 #include "expose.hpp"
 
 namespace vmpy {
@@ -56,7 +57,7 @@ void expose_serial_device(nb::module_& m) {
             L.damping = damping;
             const KinematicChain chain(pose_arg("base", base), joints, pose_arg("handle", handle));
             if (coupling.is_none() && coupling_offset.is_none()) {
-              new (self) SerialDevice(name, chain, L);
+              new (self) SerialDevice(rebuildable(SerialDevice(name, chain, L)));
               return;
             }
             const JointMatrix C = coupling.is_none() ? JointMatrix(JointMatrix::Identity(n, n))
@@ -64,7 +65,7 @@ void expose_serial_device(nb::module_& m) {
             const JointVector c0 = coupling_offset.is_none()
                                        ? JointVector(JointVector::Zero(n))
                                        : JointVector(vector_arg("coupling_offset", coupling_offset, n));
-            new (self) SerialDevice(name, chain, L, C, c0);
+            new (self) SerialDevice(rebuildable(SerialDevice(name, chain, L, C, c0)));
           }, "joints"_a, "actuated"_a, "handle"_a = nb::none(), "base"_a = nb::none(),
           "torque_limit"_a = nb::none(), "max_force"_a = kInf, "max_torque"_a = kInf,
           "stiffness"_a = DeviceLimits().stiffness, "damping"_a = DeviceLimits().damping,
@@ -97,7 +98,8 @@ void expose_omni_and_planar3r(nb::module_& m) {
   nb::class_<Planar3R, SerialDevice>(m, "Planar3R", registry().device("Planar3R")->doc.c_str())
       .def("__init__", [](Planar3R* self, double link1, double link2, nb::handle base,
                           double torque_limit, double max_force) {
-            new (self) Planar3R(link1, link2, pose_arg("base", base), torque_limit, max_force);
+            new (self) Planar3R(rebuildable(
+                Planar3R(link1, link2, pose_arg("base", base), torque_limit, max_force)));
           }, "link1"_a = Planar3RDefaults::kLink, "link2"_a = Planar3RDefaults::kLink,
           "base"_a = nb::none(), "torque_limit"_a = Planar3RDefaults::kTorqueLimit,
           "max_force"_a = Planar3RDefaults::kMaxForce,

@@ -119,8 +119,8 @@ void expose_mechanisms(nb::module_& m) {
       m, "SerialChain", "Any serial chain of revolute / prismatic joints as a mechanism.")
       .def("__init__", [](SerialChain* self, std::vector<Joint> joints, nb::handle handle,
                           nb::handle base, double length_scale) {
-            new (self) SerialChain(joints, pose_arg("handle", handle), pose_arg("base", base),
-                                   length_scale);
+            new (self) SerialChain(rebuildable(SerialChain(
+                joints, pose_arg("handle", handle), pose_arg("base", base), length_scale)));
           }, "joints"_a, "handle"_a = nb::none(), "base"_a = nb::none(), "length_scale"_a = 0.1,
           "joints: sequence of Joint; handle, base: (4, 4) poses; length_scale [m].");
 }

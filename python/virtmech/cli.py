@@ -479,38 +479,24 @@ def cmd_bench(argv: list[str]) -> int:
     return int(bench.main(argv))
 
 
-def _seed(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected an integer 0 to 2**63-1, got {text!r}"
-        ) from None
-    if not 0 <= v <= SEED_MAX:
-        raise argparse.ArgumentTypeError(f"expected an integer 0 to 2**63-1, got {text}")
-    return v
+def _integer(what: str, lo: int, hi: int | None = None):
+    """An argparse type: an integer from lo to hi (None: no bound); else "expected <what>"."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if v < lo or (hi is not None and v > hi):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text}")
+        return v
+
+    return parse
 
 
-def _port(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a port number 1 to 65534, got {text!r}"
-        ) from None
-    if not 1 <= v <= 65534:
-        raise argparse.ArgumentTypeError(f"expected a port number 1 to 65534, got {text}")
-    return v
-
-
-def _workers(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text}")
-    return v
+_seed = _integer("an integer 0 to 2**63-1", 0, SEED_MAX)
+_port = _integer("a port number 1 to 65534", 1, 65534)
+_workers = _integer("a whole number >= 1", 1)
 
 
 FORMAT_HELP = (

@@ -327,6 +327,30 @@ def test_a_negative_seed_names_the_flag(tmp_path, capsys):
     assert "Traceback" not in err and "usage:" not in err
 
 
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["run", "omni-fig9", "--seed", "abc"],
+         "--seed: expected an integer 0 to 2**63-1, got 'abc'"),
+        (["run", "omni-fig9", "--seed", str(2**63)],
+         f"--seed: expected an integer 0 to 2**63-1, got {2**63}"),
+        (["quality", "omni-fig9", "--workers", "0"],
+         "--workers: expected a whole number >= 1, got 0"),
+        (["quality", "omni-fig9", "--workers", "1.5"],
+         "--workers: expected a whole number >= 1, got '1.5'"),
+        (["view", "--port", "http"], "--port: expected a port number 1 to 65534, got 'http'"),
+    ],
+)
+def test_an_integer_flag_names_itself_the_value_and_the_range(tmp_path, capsys, argv, expected):
+    with pytest.raises(SystemExit) as e:
+        main([*argv, "--out", str(tmp_path)] if argv[0] != "view" else argv)
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert expected in err
+    assert "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_duration_flag_out_of_range_names_the_flag(tmp_path, capsys):
     err = _mistake(capsys, ["run", "omni-fig9", "--duration", "-1", "--out", str(tmp_path)])
     assert "--duration -1" in err and "duration_s: value -1" in err

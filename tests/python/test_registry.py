@@ -197,14 +197,40 @@ def test_to_dict_rebuilds_the_device_through_its_kind(name):
 
 
 def test_a_torque_limit_is_never_left_out_of_a_description():
-    """One joint's limit given, the other's not: the description keeps the vector (it does not
-    drop the given limit), and making a device of it names the parameter."""
-    dev = vm.Device([vm.Joint("revolute", [0, 0, 1]), vm.Joint("revolute", [0, 1, 0])],
-                    [True, True], torque_limit=[1.5, np.inf])
-    d = dev.to_dict()
-    assert d["torque_limit"][0] == 1.5
-    with pytest.raises(ValueError, match="torque_limit"):
-        vm.make_device(d)
+    """One joint's limit given, the other's not: a description cannot hold the missing one
+    (JSON has no inf, the kind no "none" per joint), so the constructor refuses the device,
+    naming the parameter, rather than make one whose run.json drops a limit."""
+    with pytest.raises(ValueError, match=r"torque_limit: .*got inf"):
+        vm.Device([vm.Joint("revolute", [0, 0, 1]), vm.Joint("revolute", [0, 1, 0])],
+                  [True, True], torque_limit=[1.5, np.inf])
+    both = vm.Device([vm.Joint("revolute", [0, 0, 1]), vm.Joint("revolute", [0, 1, 0])],
+                     [True, True], torque_limit=[1.5, 2.5])
+    np.testing.assert_array_equal(vm.make_device(both.to_dict()).torque_limit, [1.5, 2.5])
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda: vm.Device([vm.Joint("revolute", [0, 0, 1])], [True], max_force=5000.0),
+         r"^max_force: expected a number > 0 and <= 1000 \[N\], got 5000$"),
+        (lambda: vm.Device([vm.Joint("revolute", [0, 0, 1], lower=-2000.0)], [True]),
+         r"^joints\[0\]\.lower: expected .*<= 1000 .*got -2000$"),
+        (lambda: vm.Device([vm.Joint("revolute", [0, 0, 1])], [True], stiffness=2e6),
+         r"^stiffness: expected .*<= 1e\+06 .*got 2e\+06$"),
+        (lambda: vm.Planar3R(5.0, 0.2), r"^link1: expected .*<= 2 \[m\], got 5$"),
+        (lambda: vm.Planar3R(0.2, 0.2, max_force=3000.0), r"^max_force: .*got 3000$"),
+        (lambda: vm.SerialChain([vm.Joint("revolute", [0, 0, 1])], length_scale=50.0),
+         r"^length_scale: expected a number > 0 and <= 10 \[m\], got 50$"),
+    ],
+    ids=["device-force", "device-joint-limit", "device-stiffness", "planar3r-link",
+         "planar3r-force", "chain-length-scale"],
+)
+def test_a_python_constructor_refuses_what_its_kind_refuses(make, message):
+    """Device, Planar3R and SerialChain take C++'s arguments, not their kinds' tables, but the
+    ranges are the kinds' (one source): a value a scenario file may not hold is refused here
+    too, naming the parameter and the value, so every object made rebuilds from run.json."""
+    with pytest.raises(ValueError, match=message):
+        make()
 
 
 def test_sketches_draw_the_mechanism_where_it_is():
