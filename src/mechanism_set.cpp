@@ -94,6 +94,13 @@ std::uint32_t MechanismSet::step(const double* q, const double* dq, MechanismSet
   out.cycle = src;
   out.active = active_;
   if (faults) return faulted(faults, out);
+  if (out.cycle.status & status::kWatchdog) {
+    // a gap: the members ramp in again, and the force the device held over it is not known
+    // (a driver zeroes the late tick): the set's blend starts from zero too, not from the
+    // force it had before the gap
+    wrench_.setZero();
+    switching_ = true;
+  }
   if (active_ < 0) {
     out.cycle.torque.setZero(device_->dof());
     out.cycle.wrench.setZero();

@@ -96,6 +96,11 @@ constexpr double kLockDepthM = 1e-4;
 /// The shortest force ramp-in after a fault or a watchdog trip [s], whatever ramp_time_s.
 constexpr double kMinimumFaultRampS = 0.05;
 
+/// The shortest force ramp-in at the start that a device driver accepts [s] (DriverServo):
+/// a shorter ramp_time_s puts the force on a hand as a step (one period: the whole force on
+/// the first tick). 20 periods at 1 kHz: the Omni's 3.3 N rises at most 165 N/s.
+constexpr double kMinimumDeviceRampS = 0.02;
+
 /// The validated configuration with every default resolved.
 struct ControllerModel {
   Vector6 kp, kv, w_a, w_e, w_e_star;

@@ -388,14 +388,15 @@ def run(
             period = float(S["controller"]["period_s"])
             _check_rate(scenario.source, info, period)
             calibration = _calibrated(driver, notify, stop)
-            if calibration is None:
+            if calibration is not None:
+                rig = rig_for(scenario, _force_limit(S, model, info), watchdog_ms * 1e-3)
+                cutoff = float(S["sensors"]["velocity_cutoff_hz"])
+                rows = LogRows(rig)
+                if view_port is not None:  # before the servo: a port taken is a mistake
+                    viewer = _viewer(rig, view_port, notify)
+            if calibration is None or stop.signal is not None:  # Ctrl-C since the device opened
                 message = "stopped (interrupted) before the servo started"
                 return DriveResult("interrupted", 0, message, {}, info)
-            rig = rig_for(scenario, _force_limit(S, model, info), watchdog_ms * 1e-3)
-            cutoff = float(S["sensors"]["velocity_cutoff_hz"])
-            rows = LogRows(rig)
-            if view_port is not None:  # before the servo: a port taken is a mistake, not a fault
-                viewer = _viewer(rig, view_port, notify)
             _start(driver, rig, period, cutoff, scenario.source, notify)
             sinks = _sinks(out, fmt, rows.columns, figures)
             if viewer is not None:
@@ -449,6 +450,8 @@ def _start(driver, rig, period: float, cutoff: float, source: str, notify) -> No
     d = _driver_module()
     try:
         driver.start(rig.renderer, period_s=period, velocity_cutoff_hz=cutoff)
+    except ValueError as e:  # what a device needs of the scenario (a ramp-in, a watchdog)
+        raise UserError(f"{source}: [controller] {e}") from None
     except d.DeviceMismatch as e:
         raise UserError(f"{source}: {e}") from None
     except d.DeviceFault as e:
@@ -514,8 +517,6 @@ def _serve(driver, name: str, rows: LogRows, stop, duration_s, sinks: list, quie
         while True:
             time.sleep(POLL_S)
             st = driver.stats
-            if duration_s is not None and st["elapsed_s"] >= duration_s:
-                break
             rec = driver.read_records(1 << 14)
             if len(rec):
                 pending.append(rows(rec))
@@ -530,6 +531,9 @@ def _serve(driver, name: str, rows: LogRows, stop, duration_s, sinks: list, quie
                 break
             if driver.stalled(STALL_S):
                 reason = "stall"
+                break
+            # the duration last: a device error in the run's last poll is still named
+            if duration_s is not None and st["elapsed_s"] >= duration_s:
                 break
         # the end: zero torque, the scheduler stopped, the device disabled (at once, before
         # anything is written), then the records left

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -48,6 +49,24 @@ void raise_to(std::atomic<double>& a, double v) noexcept {
   if (v > a.load(std::memory_order_relaxed)) a.store(v, std::memory_order_relaxed);
 }
 
+// What a device needs of a controller beyond a simulation: a watchdog, and a ramp-in a hand
+// does not feel as a step.
+void require_device_ready(const Controller& c) {
+  if (!(c.model().watchdog_s > 0.0)) {
+    throw std::invalid_argument(
+        "watchdog_s: the controller has no watchdog (0); a device needs one: a tick later "
+        "than it zeroes the force and ramps it in again (e.g. 3 servo periods)");
+  }
+  const double ramp_s = static_cast<double>(c.model().ramp_cycles) * c.model().period_s;
+  if (ramp_s < kMinimumDeviceRampS - 1e-9) {
+    std::ostringstream os;
+    os << "ramp_time_s: expected at least " << kMinimumDeviceRampS
+       << " s on a device (the force ramps in over it; shorter, it steps onto the hand), got "
+       << ramp_s << " s";
+    throw std::invalid_argument(os.str());
+  }
+}
+
 }  // namespace
 
 const RecordField* record_fields(int* count) noexcept {
@@ -78,14 +97,7 @@ void DriverServo::init() {
   require_non_negative("late_s", s.late_s);
   require_non_negative("fault_limit_s", s.fault_limit_s);
   const int members = ctrl_ ? 1 : set_->size();
-  for (int i = 0; i < members; ++i) {
-    const Controller& c = ctrl_ ? *ctrl_ : set_->member(i);
-    if (!(c.model().watchdog_s > 0.0)) {
-      throw std::invalid_argument(
-          "watchdog_s: the controller has no watchdog (0); a device needs one: a tick later "
-          "than it zeroes the force and ramps it in again (e.g. 3 servo periods)");
-    }
-  }
+  for (int i = 0; i < members; ++i) require_device_ready(ctrl_ ? *ctrl_ : set_->member(i));
   n_ = device_->dof();
   filter_ = VelocityFilter(n_, s.period_s, VelocityFilter::alpha_for_cutoff(s.period_s,
                                                                             s.velocity_cutoff_hz));

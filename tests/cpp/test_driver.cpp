@@ -96,6 +96,24 @@ struct ServoScene {
   Controller controller{omni, circle(), driver_settings()};
 };
 
+TEST(DriverServo, RefusesARampInThatStepsOntoTheHand) {
+  auto omni = std::make_shared<PhantomOmni>();
+  ControllerSettings s = driver_settings();
+  s.ramp_time_s = 1e-3;  // one period: the whole force on the first tick
+  Controller step(omni, circle(), s);
+  try {
+    DriverServo servo(step);
+    FAIL() << "a one-period ramp-in was accepted";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("ramp_time_s: expected at least 0.02 s", 0), 0u) << what;
+    EXPECT_NE(what.find("got 0.001 s"), std::string::npos) << what;
+  }
+  s.ramp_time_s = kMinimumDeviceRampS;
+  Controller ramped(omni, circle(), s);
+  EXPECT_NO_THROW(DriverServo{ramped});
+}
+
 TEST(DriverServo, TorqueIsTheControllersOnTheFilteredVelocity) {
   ServoScene a, b;  // b: the same controller stepped by hand
   DriverServo servo(a.controller);

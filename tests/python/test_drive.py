@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
+import subprocess
+import sys
 import time
 
 import drive_support as ds
@@ -290,6 +293,80 @@ def test_an_hd_error_mid_run_zeroes_the_torque_and_exits_1_naming_it(library, sc
     assert len(set_after) > 0 and (set_after[:, 7:10] == 0).all()
     assert np.abs(rows[:600, 7:10][np.isfinite(rows[:600, 7])]).max() > 0
     assert s["disable_calls"] == "1" and s["scheduler_running"] == "0"
+
+
+def test_a_ramp_in_that_steps_onto_the_hand_is_refused_before_any_force(
+    library, scenario, tmp_path
+):
+    scenario.write_text(scenario.read_text() + "ramp_time_s = 0.001\n")  # [controller]'s
+    cfg = ds.write_config(tmp_path)
+    r = run(library, scenario, tmp_path / "o", cfg, "--duration", "0.5", "--quiet")
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "[controller] ramp_time_s: expected at least 0.02 s on a device" in r.stderr
+    assert "got 0.001 s" in r.stderr and "Traceback" not in r.stderr
+    s = ds.summary(tmp_path)
+    assert s["torque_sets"] == "0" and s["scheduler_running"] == "0"
+
+
+class _ErrorAsTheDurationEnds:
+    """A driver whose first poll shows both the duration over and a device error (an error
+    in the run's last poll)."""
+
+    stats = {"elapsed_s": 1.0004, "stop": "device_error", "device_error": 0x0302}
+    stopped = False
+
+    def read_records(self, most):
+        return np.zeros((0, 4))
+
+    def stalled(self, stall_s):
+        return False
+
+    def stop(self):
+        self.stopped = True
+
+    def describe_error(self, code):
+        return f"HD_COMM_ERROR (0x{code:04X})"
+
+
+def test_a_device_error_in_the_run_s_last_poll_is_named_not_taken_for_its_end():
+    import types
+
+    from virtmech import drive
+
+    driver = _ErrorAsTheDurationEnds()
+    rows = types.SimpleNamespace(columns=[])
+    r = drive._serve(driver, "x", rows, types.SimpleNamespace(signal=None), 1.0, [], True)
+    assert driver.stopped
+    assert (r.reason, r.exit_code) == ("device_error", 1)
+    assert "HD_COMM_ERROR (0x0302)" in r.message and "duration" not in r.message
+
+
+CTRL_C_AFTER_OPEN = """
+import os, signal, sys
+import virtmech.drive as drive
+check_rate = drive._check_rate
+def interrupted(*args, **kwargs):  # Ctrl-C as the device has just opened (before calibrating)
+    os.kill(os.getpid(), signal.SIGINT)
+    return check_rate(*args, **kwargs)
+drive._check_rate = interrupted
+scenario, _ = drive.load(sys.argv[1])
+r = drive.run(scenario, "openhaptics", library=sys.argv[2], quiet=True)
+print(r.reason, r.exit_code, r.message, sep="|")
+"""
+
+
+def test_ctrl_c_after_the_device_opened_never_starts_the_servo(library, scenario, tmp_path):
+    cfg = ds.write_config(tmp_path)
+    env = {**os.environ, "VIRTMECH_STANDIN_CONFIG": str(cfg)}
+    p = subprocess.run([sys.executable, "-c", CTRL_C_AFTER_OPEN, str(scenario), str(library)],
+                       env=env, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    reason, code, message = p.stdout.strip().splitlines()[-1].split("|")
+    assert (reason, code) == ("interrupted", "0")
+    assert message == "stopped (interrupted) before the servo started"
+    s = ds.summary(tmp_path)
+    assert s["torque_sets"] == "0" and s["force_output_enables"] == "0", s
+    assert s["scheduler_running"] == "0" and s["disable_calls"] == "1"
 
 
 def test_a_failing_init_device_exits_1_naming_the_error(library, scenario, tmp_path):

@@ -27,12 +27,12 @@ def cartesian_device() -> vm.Device:
     return vm.Device(joints, [True] * 6, stiffness=KP, damping=1.0, max_force=100.0)
 
 
-def make_set(device, release=RELEASE, unilateral_floor=None):
+def make_set(device, release=RELEASE, unilateral_floor=None, watchdog_s=0.0):
     s = vm.MechanismSet(device, 4, snap_distance=SNAP, release_distance=release,
                         force_rate=FORCE_RATE, moment_rate=1.0)
     for h in HEIGHTS:
         guide = vm.LineGuide([0, 0, h], [1, 0, 0], L, [0, 0, 1])
-        s.add(vm.Controller(device, guide, ramp_time_s=1e-3))
+        s.add(vm.Controller(device, guide, ramp_time_s=1e-3, watchdog_s=watchdog_s))
     if unilateral_floor is not None:
         floor = vm.Probe([0, 0, unilateral_floor], [0, 0, 1], L, unilateral=True)
         s.add(vm.Controller(device, floor, ramp_time_s=1e-3))
@@ -194,6 +194,30 @@ def test_after_a_fault_the_force_comes_back_at_the_set_rate():
         previous = f
     # and it does come back in full
     np.testing.assert_allclose(previous, held[:3], atol=1e-9)
+
+
+def test_after_a_watchdog_gap_the_blend_starts_again_from_zero():
+    # A late tick while a member engages (the set blending its force in at 20 N/s): a driver
+    # zeroes that tick's torque (DriverServo), and the members ramp in again. The set's blend
+    # must start from that zero too, not from the force it had before the gap (a step back
+    # to it on the next tick).
+    dev = cartesian_device()
+    s = make_set(dev, watchdog_s=0.005)
+    max_step = FORCE_RATE * DT
+    t = 0.0
+    for _ in range(60):  # engaged 2 mm deep: Kp 2 mm = 2.4 N, blended in at 20 N/s
+        t += DT
+        out = s.step(q_tip(-0.002), np.zeros(6), t)
+    before = np.linalg.norm(np.array(out.wrench)[:3])
+    assert out.switching and before > 10 * max_step  # mid-blend
+    t += 0.010  # a 10 ms gap, twice the watchdog
+    out = s.step(q_tip(-0.002), np.zeros(6), t)
+    assert "watchdog" in out.status_names
+    for k in range(1, 40):
+        f = np.linalg.norm(np.array(out.wrench)[:3])
+        assert f <= k * max_step + 1e-12, (k, f, before)
+        t += DT
+        out = s.step(q_tip(-0.002), np.zeros(6), t)
 
 
 def test_while_blending_the_energy_tank_books_the_torque_the_motors_hold():

@@ -267,6 +267,36 @@ def test_a_sample_sent_again_gets_its_command_again():
     again = loop.on_joint_state(TOUCH_JOINTS, r + 1.0, [], t0 + 2 * 10**6, 50 * 10**6)
     np.testing.assert_array_equal(again.efforts, first.efforts)
     assert loop.messages == 3 and loop.stats()["repeated"] == 1
-    assert loop.last_wall == pytest.approx(0.05)  # the driver is alive: no stale zero yet
+    assert loop.last_wall == pytest.approx(0.002)  # a repeat is no news: the last new sample's
     assert loop.on_joint_state(TOUCH_JOINTS, r, [], t0 + 10**6, 51 * 10**6) is None
     assert loop.out_of_order == 1 and loop.messages == 3
+
+
+def test_a_sample_sent_again_after_the_watchdog_gets_zero():
+    """The watchdog counts from the last new sample: a driver frozen on one sample (sending it
+    again and again) is zeroed after watchdog_s, and a repeat after the zero gets zero too, not
+    the force from before the silence; the next new sample ramps the force in again."""
+    from virtmech.builder import build
+    from virtmech.ros2.render import RenderLoop
+
+    rig = build("omni-fig11", simulated=False)
+    settings, jmap = settings_from_parameters(default_parameters(rig), rig.device)
+    loop = RenderLoop(rig, settings, jmap)
+    r = jmap.driver_positions(np.array([0.05, 0.45, -0.10, 0.20, 0.60, 0.10]))
+    t0, ms = 1_700_000_000 * 10**9, 10**6
+    for k in range(400):  # 0.4 s at 1 kHz: ramped in
+        held = loop.on_joint_state(TOUCH_JOINTS, r, [], t0 + k * ms, k * ms)
+    assert np.abs(held.efforts).max() > 0.1 and float(held.output.ramp) == 1.0
+    wall = 399 * ms
+    silence = int(settings.watchdog_s * 1e9) + ms
+    for _ in range(5):  # the same sample, resent through the watchdog's time
+        wall += silence // 5
+        again = loop.on_joint_state(TOUCH_JOINTS, r, [], t0 + 399 * ms, wall)
+        assert again is not None
+    zero = loop.stale(wall)
+    assert zero is not None and zero.zero and not np.any(zero.efforts)
+    resent = loop.on_joint_state(TOUCH_JOINTS, r, [], t0 + 399 * ms, wall + ms)
+    assert resent.zero and not np.any(resent.efforts) and not np.any(resent.torque)
+    fresh = loop.on_joint_state(TOUCH_JOINTS, r, [], t0 + 399 * ms + silence, wall + 2 * ms)
+    assert float(fresh.output.ramp) < 0.05  # ramping in again, from near zero
+    assert np.abs(fresh.efforts).max() < 0.05 * np.abs(held.efforts).max()

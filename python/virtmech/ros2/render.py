@@ -18,9 +18,9 @@ Per input message (one servo cycle):
                     where the force alone can: the Touch), in the driver's axes
 
 A message older than the last one is dropped (counted); a gap between stamps longer than the
-period by `late_s` counts as late. No message for `watchdog_s` of wall time: the command is
-zero (published once), and the controller's own watchdog ramps the force in again when the
-stamps resume after a gap.
+period by `late_s` counts as late. No new sample for `watchdog_s` of wall time (a sample sent
+again is none): the command is zero (published once, and to every repeat after it), and the
+controller's own watchdog ramps the force in again when the stamps resume after a gap.
 """
 
 from __future__ import annotations
@@ -322,10 +322,12 @@ class RenderLoop:
         t = (ns - self._origin_ns) * 1e-9  # [s] since the first message
         if t == self.last_stamp and self._last_command is not None:
             # the same sample again (a driver sending it again because its answer was lost):
-            # the command that answered it again, the controller not stepped twice
+            # the command that answered it again, the controller not stepped twice. It is no
+            # news of the device: the watchdog still counts from the last new sample (a driver
+            # frozen on one sample is zeroed), and once it has zeroed the command a repeat
+            # gets zero, not the force from before the silence
             self.repeated += 1
-            self.last_wall, self.zeroed = wall_ns * 1e-9, False
-            return self._last_command
+            return self._zero(wall_ns * 1e-9) if self.zeroed else self._last_command
         if t < self.last_stamp:
             self.out_of_order += 1
             return None
@@ -365,10 +367,13 @@ class RenderLoop:
             return None  # nothing commanded yet
         self.zeroed = True
         self.stale_events += 1
-        z = np.zeros(self.n)
+        return self._zero(wall_s)
+
+    def _zero(self, stamp_s: float) -> Command:
+        """The zero command (no torque, no effort, no wrench)."""
         return Command(
-            stamp_s=wall_s,
-            torque=z,
+            stamp_s=stamp_s,
+            torque=np.zeros(self.n),
             efforts=np.zeros(self.n),
             wrench=np.zeros(6),
             zero=True,
