@@ -46,6 +46,9 @@ DEFAULT_CYCLES = 1_000_000
 #: Default number of Python ``step`` calls and NumPy reference cycles per case.
 DEFAULT_PYTHON_CYCLES = 20_000
 DEFAULT_NUMPY_CYCLES = 1_000
+#: the most cycles of each kind a run times: their timings are kept in memory (the C++ harness
+#: 8 B a cycle, a Python step about 180 B: under 1 GB each)
+MAX_CYCLES = {"cycles": 100_000_000, "python_cycles": 5_000_000, "numpy_cycles": 1_000_000}
 #: Untimed cycles before timing (the first cycle's initial placement, caches); as the harness.
 WARMUP = 2000
 #: Untimed cycles of the NumPy reference before its timed ones (longer than the torque ramp).
@@ -581,11 +584,11 @@ def main(argv: list[str], reference: Any = None) -> int:
     p.add_argument("--no-sim", action="store_true", help="skip the simulation figures")
     p.add_argument("--cpu", type=int, default=None, help="pin the C++ harness to this CPU")
     a = p.parse_args(argv)
-    if a.numpy_cycles < 0:
-        p.error(f"--numpy-cycles: expected >= 0, got {a.numpy_cycles}")
-    for opt in ("cycles", "python_cycles"):
-        if getattr(a, opt) < 1:
-            p.error(f"--{opt.replace('_', '-')}: expected >= 1, got {getattr(a, opt)}")
+    for opt, least in (("cycles", 1), ("python_cycles", 1), ("numpy_cycles", 0)):
+        v, most = getattr(a, opt), MAX_CYCLES[opt]
+        if not least <= v <= most:
+            p.error(f"--{opt.replace('_', '-')}: expected {least} to {most:,} (the timings "
+                    f"are kept in memory), got {v}")
     # the table's lines as their figures are measured: on stdout, or with --json (one JSON
     # object on stdout at the end) on stderr
     stream = sys.stderr if a.json else sys.stdout

@@ -96,9 +96,22 @@ def _run_one(scenario, out_dir, seed, progress: bool, fmt: str = "csv", chunk_s=
 
     preflight(scenario)
     out = _out_dir(out_dir)
+    _replacing(out, fmt)
     return run_scenario(
         scenario, seed=seed, progress=progress, out=out, fmt=fmt, chunk_s=chunk_s
     ).metrics
+
+
+def _replacing(out: Path, fmt: str) -> None:
+    """A run into a folder that holds a run already: said on stderr, and the other format's
+    log of that run removed (it would stand beside this run's log as if it were this run's)."""
+    if not (out / "run.json").is_file():
+        return
+    stale = [out / f"log.{f}" for f in LOG_FORMATS if f != fmt and (out / f"log.{f}").is_file()]
+    for path in stale:
+        path.unlink()
+    removed = f"; removed its {', '.join(p.name for p in stale)}" if stale else ""
+    print(f"virtmech: {out}: replacing the run written there before{removed}", file=sys.stderr)
 
 
 def cmd_scenarios(args) -> int:
@@ -340,7 +353,7 @@ def cmd_demo(args) -> int:
         )
     _require_format(args.format)
     out = _out_dir(args.out)
-    names = args.only or known
+    names = list(dict.fromkeys(args.only)) if args.only else known  # each once, as given
     runs, entries = {}, []
     t0 = time.perf_counter()
     for name in names:
@@ -811,6 +824,7 @@ def main(argv: list[str] | None = None) -> int:
         argv, ros_args = _split_ros_args(argv)
         args = p.parse_args(argv)
         args.ros_args = ros_args
+        _refuse_empty(args)
         if args.command in COMMANDS:
             rc = COMMANDS[args.command](args)
         else:
@@ -832,6 +846,23 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("virtmech: interrupted", file=sys.stderr)
         return 130
+
+
+#: arguments that may not be empty: what an empty one would mean instead (a mistake)
+_NOT_EMPTY = (
+    ("out", "--out", "a folder name (empty: the current folder)"),
+    ("record_dir", "--record-dir", "a folder name"),
+    ("scenario", "SCENARIO", "a scenario file or a shipped scenario's name"),
+    ("source", "SCENARIO | LOG_DIR", "a scenario or a run's folder"),
+)
+
+
+def _refuse_empty(args) -> None:
+    """A UserError for an empty --out, SCENARIO, ... (given as '' on the command line)."""
+    for attr, flag, expected in _NOT_EMPTY:
+        value = getattr(args, attr, None)
+        if isinstance(value, str) and not value.strip():
+            raise UserError(f"{flag} {value!r}: expected {expected}")
 
 
 def _quiet_stdout() -> None:

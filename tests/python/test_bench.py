@@ -156,6 +156,18 @@ def test_main_rejects_a_bad_cycle_count():
         bench.main(["--cycles", "0"])
 
 
+@pytest.mark.parametrize("flag, most", [("--cycles", "100,000,000"),
+                                        ("--python-cycles", "5,000,000"),
+                                        ("--numpy-cycles", "1,000,000")])
+def test_a_cycle_count_beyond_memory_is_refused_naming_the_flag(capsys, flag, most):
+    with pytest.raises(SystemExit) as e:  # before anything is allocated or run
+        bench.main([flag, "10000000000", "--case", "omni+probe", "--no-sim"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert f"{flag}: expected" in err and f"to {most}" in err and "got 10000000000" in err
+    assert "Traceback" not in err
+
+
 def test_simulation_figures_are_simulated_over_wall_seconds(monkeypatch):
     # a stand-in simulation: 2 s simulated (2001 cycles) in 0.07, 0.04 and 0.05 s of wall
     # time, of which 12, 20 and 25 ms in the controller and 4, 2 and 1 ms deriving columns

@@ -351,6 +351,53 @@ def test_an_integer_flag_names_itself_the_value_and_the_range(tmp_path, capsys, 
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["run", "omni-fig9", "--out", ""], "--out '': expected a folder name"),
+        (["demo", "--only", "omni-fig9", "--out", ""], "--out '': expected a folder name"),
+        (["run", ""], "SCENARIO '': expected a scenario file"),
+        (["quality", " "], "SCENARIO ' ': expected a scenario file"),
+    ],
+)
+def test_an_empty_folder_or_scenario_is_refused_and_nothing_written(
+    tmp_path, monkeypatch, capsys, argv, expected
+):
+    monkeypatch.chdir(tmp_path)  # an empty --out would have meant this folder
+    err = _mistake(capsys, argv)
+    assert expected in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_run_into_a_run_s_folder_replaces_it_and_the_replay_reads_the_new_log(
+    tmp_path, capsys
+):
+    from virtmech.view.replay import Replay
+
+    out = tmp_path / "x"
+    assert main(["run", "omni-fig10", "--duration", "0.2", "--out", str(out), "--quiet"]) == 0
+    assert (out / "log.csv").is_file()
+    capsys.readouterr()
+    assert main(["run", "omni-fig11", "--duration", "0.3", "--out", str(out), "--quiet",
+                 "--format", "parquet"]) == 0
+    err = capsys.readouterr().err
+    assert f"{out}: replacing the run written there before; removed its log.csv" in err
+    assert not (out / "log.csv").exists() and (out / "log.parquet").is_file()
+    replay = Replay(out)
+    assert replay.name == "omni-fig11"
+    assert replay.duration == pytest.approx(0.3, abs=2e-3)
+
+
+def test_the_replay_reads_the_log_run_json_names(tmp_path):
+    from virtmech.view.replay import Replay
+
+    out = tmp_path / "x"
+    assert main(["run", "omni-fig10", "--duration", "0.2", "--out", str(out), "--quiet",
+                 "--format", "parquet"]) == 0
+    (out / "log.csv").write_text("t\n0\n")  # a stray file beside the run's own log
+    assert Replay(out).duration == pytest.approx(0.2, abs=2e-3)
+
+
 def test_a_duration_flag_out_of_range_names_the_flag(tmp_path, capsys):
     err = _mistake(capsys, ["run", "omni-fig9", "--duration", "-1", "--out", str(tmp_path)])
     assert "--duration -1" in err and "duration_s: value -1" in err

@@ -347,3 +347,7 @@ def test_mistakes_are_one_line_and_exit_2(tmp_path, capsys):
         assert main(["view", "omni-fig11", "--port", str(port)]) == 2
         err = capsys.readouterr().err
         assert f"--port {port}: cannot listen" in err and err.count("\n") == 1
+    # an address that is not this machine's: the host named, not the port
+    assert main(["view", "omni-fig11", "--host", "8.8.8.8", "--port", "8173"]) == 2
+    err = capsys.readouterr().err
+    assert "--host 8.8.8.8: cannot listen on it" in err and "--port" not in err

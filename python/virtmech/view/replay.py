@@ -26,10 +26,21 @@ def is_log_dir(path: str | Path) -> bool:
     return p.is_dir()
 
 
-def _log_file(folder: Path) -> Path:
-    for name in ("log.csv", "log.parquet"):
+#: the log files a run writes (--format csv or parquet)
+LOG_NAMES = ("log.csv", "log.parquet")
+
+
+def _log_file(folder: Path, named: object = None) -> Path:
+    """The run's log: the file run.json names (`log_file`), else log.csv or log.parquet."""
+    names = (named,) if isinstance(named, str) and named in LOG_NAMES else LOG_NAMES
+    for name in names:
         if (folder / name).is_file():
             return folder / name
+    if names != LOG_NAMES:
+        raise UserError(
+            f"LOG_DIR {folder}: no {named} in the folder, the log its run.json names; "
+            "expected the folder as `virtmech run` wrote it"
+        )
     raise UserError(
         f"LOG_DIR {folder}: no log.csv or log.parquet in the folder; expected a folder "
         "written by `virtmech run` (log.csv and run.json)"
@@ -51,9 +62,9 @@ class Replay:
                 f"LOG_DIR {folder}: no run.json in the folder; expected a folder written by "
                 "`virtmech run` (log.csv and run.json)"
             )
-        log_path = _log_file(folder)
         try:
             info = json.loads(run_json.read_text(encoding="utf-8"))
+            log_path = _log_file(folder, info.get("log_file"))
             S = info["scenario"]
             self.name = str(info.get("name", folder.name))
             rig = build(sc.validate(S, source=str(run_json)), simulated=False)

@@ -12,6 +12,7 @@ stretches of cycles.
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
 import json
 import math
@@ -47,6 +48,12 @@ def check_port(host: str, port: int, label: str | None = None) -> None:
             s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             s.bind((host, port))
     except OSError as e:
+        # the host is at fault where it does not resolve or is no address of this machine
+        if isinstance(e, socket.gaierror) or e.errno == errno.EADDRNOTAVAIL:
+            raise UserError(
+                f"--host {host}: cannot listen on it ({e.strerror or e}); expected an address "
+                "of this machine (127.0.0.1: this machine only; 0.0.0.0: every interface)"
+            ) from None
         raise UserError(
             f"{label}: cannot listen on {host}:{port} ({e.strerror or e}); expected a free port"
         ) from None
