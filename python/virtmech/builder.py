@@ -379,10 +379,11 @@ def build(scenario, seed: int | None = None, simulated: bool = True) -> Rig:
 
 def preflight(scenario) -> None:
     """What a run checks before it simulates, without simulating: the device, the
-    mechanisms, the controller (and set) built and the start pose reached; the same
-    ScenarioError naming the file and the key as a run would raise (virtmech sweep checks
-    every point of a grid so before any run starts)."""
-    device, mechanisms, _, _ = _rendering(scenario)
+    mechanisms, the controller (and set) built, the start pose reached and the hand's plan
+    made from it ([[intent]]); the same ScenarioError naming the file and the key as a run
+    would raise (virtmech sweep checks every point of a grid so before any run starts)."""
     from .sim.start import initial_joints
 
-    built(scenario, "initial", lambda: initial_joints(scenario.data, device, mechanisms[0]))
+    rig = build(scenario, simulated=False)
+    rig.q0 = built(scenario, "initial", lambda: initial_joints(rig.data, rig.device, rig.mechanism))
+    rig.intent()

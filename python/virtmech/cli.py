@@ -410,7 +410,9 @@ def cmd_drive(args) -> int:
     except sc.ScenarioError as e:
         raise UserError(*e.messages) from None
     _require_format(args.format)
-    out = _out_dir(args.out or Path("out") / f"{scenario.name}-drive")
+    # made by drive.run once the device is open and the servo about to start: a run refused
+    # before (an option, the library, another device) leaves no folder
+    out = Path(args.out or Path("out") / f"{scenario.name}-drive")
     if note and not args.quiet:
         print(f"virtmech drive: note: {note}", file=sys.stderr)
     try:

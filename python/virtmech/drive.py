@@ -398,6 +398,10 @@ def run(
                 message = "stopped (interrupted) before the servo started"
                 return DriveResult("interrupted", 0, message, {}, info)
             _start(driver, rig, period, cutoff, scenario.source, notify)
+            if out is not None:  # made now: a run refused before the servo writes nothing
+                from .cli import _out_dir
+
+                out = _out_dir(out)  # (a folder it cannot make: the servo stops, as below)
             sinks = _sinks(out, fmt, rows.columns, figures)
             if viewer is not None:
                 sinks.append(viewer.replay.append)

@@ -398,6 +398,29 @@ def test_the_replay_reads_the_log_run_json_names(tmp_path):
     assert Replay(out).duration == pytest.approx(0.2, abs=2e-3)
 
 
+FAST_SHORT_PATH = """
+[[intent]]
+action = "follow"
+start_s = 0.1
+theta = [0.35, 0.36]
+profile = "constant"
+speed_m_s = 5
+"""
+
+
+@pytest.mark.parametrize("command", [["run"], ["quality"], ["sweep", "--grid", "seed=1,2"]])
+def test_a_hand_plan_mistake_is_found_before_anything_is_written(tmp_path, capsys, command):
+    # 0.8 mm of circle at 5 m/s: the [[intent]] is checked with the start pose it starts from,
+    # before the output folder is made (it used to be made first, then left empty)
+    bad = tmp_path / "in" / "bad.toml"
+    bad.parent.mkdir()
+    bad.write_text(sc.path_of("omni-fig10").read_text() + FAST_SHORT_PATH)
+    out = tmp_path / "out"
+    err = _mistake(capsys, [command[0], str(bad), *command[1:], "--out", str(out)])
+    assert "intent[1].speed_m_s: value 5 is out of range" in err
+    assert not out.exists()
+
+
 def test_a_duration_flag_out_of_range_names_the_flag(tmp_path, capsys):
     err = _mistake(capsys, ["run", "omni-fig9", "--duration", "-1", "--out", str(tmp_path)])
     assert "--duration -1" in err and "duration_s: value -1" in err

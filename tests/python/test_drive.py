@@ -306,6 +306,7 @@ def test_a_ramp_in_that_steps_onto_the_hand_is_refused_before_any_force(
     assert "got 0.001 s" in r.stderr and "Traceback" not in r.stderr
     s = ds.summary(tmp_path)
     assert s["torque_sets"] == "0" and s["scheduler_running"] == "0"
+    assert not (tmp_path / "o").exists()
 
 
 class _ErrorAsTheDurationEnds:
@@ -387,6 +388,7 @@ def test_a_missing_library_exits_2_naming_the_path(scenario, tmp_path):
     r = ds.drive([str(scenario), "--out", str(tmp_path / "o")], None)
     assert r.returncode == 2
     assert "libHD.so: not found" in r.stderr and "install OpenHaptics" in r.stderr
+    assert not (tmp_path / "o").exists()  # refused before the servo: no folder made
 
 
 def test_a_device_that_is_not_the_scenario_s_exits_2(library, scenario, tmp_path):

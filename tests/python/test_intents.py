@@ -476,9 +476,9 @@ def test_a_push_the_physics_cannot_integrate_ends_the_run_with_a_clear_error(
     # and an unstable run is a user's mistake on the command line too (exit 2)
     build = builder.build
 
-    def diverging(scenario, seed=None):
+    def diverging(scenario, seed=None, **kw):  # (kw: preflight's simulated=False)
         scenario.data["intent"][0]["force"] = [1e6, 0.0, 0.0]
-        return build(scenario, seed)
+        return build(scenario, seed, **kw)
 
     monkeypatch.setattr(builder, "build", diverging)
     capsys.readouterr()
