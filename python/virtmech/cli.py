@@ -72,6 +72,22 @@ def _out_dir(path: str | Path, flag: str = "--out") -> Path:
     return out
 
 
+def _can_make(path: str | Path, flag: str = "--out") -> None:
+    """A UserError naming the flag unless `path` is a folder, or can be made one, to write in;
+    nothing is made (for a folder made later: virtmech drive, once the servo runs)."""
+    there = Path(path).absolute()
+    while not there.exists():
+        there = there.parent
+    why = "not a folder" if not there.is_dir() else None
+    if why is None and not os.access(there, os.W_OK | os.X_OK):
+        why = "not writable"
+    if why:
+        raise UserError(
+            f"{flag} {path}: cannot create or write the output folder ({there} is {why}); "
+            "expected a folder you can write to"
+        )
+
+
 #: the log's file formats (`--format`): csv (default) or parquet (needs pyarrow)
 LOG_FORMATS = ("csv", "parquet")
 
@@ -96,22 +112,25 @@ def _run_one(scenario, out_dir, seed, progress: bool, fmt: str = "csv", chunk_s=
 
     preflight(scenario)
     out = _out_dir(out_dir)
-    _replacing(out, fmt)
-    return run_scenario(
+    earlier = _earlier_log(out)
+    metrics = run_scenario(
         scenario, seed=seed, progress=progress, out=out, fmt=fmt, chunk_s=chunk_s
     ).metrics
+    if earlier is not None and earlier.name != f"log.{fmt}" and earlier.is_file():
+        earlier.unlink()  # it would stand beside this run's log as if it were this run's
+        print(f"virtmech: {out}: removed the earlier run's {earlier.name}", file=sys.stderr)
+    return metrics
 
 
-def _replacing(out: Path, fmt: str) -> None:
-    """A run into a folder that holds a run already: said on stderr, and the other format's
-    log of that run removed (it would stand beside this run's log as if it were this run's)."""
-    if not (out / "run.json").is_file():
-        return
-    stale = [out / f"log.{f}" for f in LOG_FORMATS if f != fmt and (out / f"log.{f}").is_file()]
-    for path in stale:
-        path.unlink()
-    removed = f"; removed its {', '.join(p.name for p in stale)}" if stale else ""
-    print(f"virtmech: {out}: replacing the run written there before{removed}", file=sys.stderr)
+def _earlier_log(out: Path) -> Path | None:
+    """The log of the run written in `out` before (the one its run.json names), said on
+    stderr; None where there is none."""
+    try:
+        named = json.loads((out / "run.json").read_text(encoding="utf-8")).get("log_file")
+    except (OSError, ValueError, AttributeError):
+        return None
+    print(f"virtmech: {out}: replacing the run written there before", file=sys.stderr)
+    return out / named if named in {f"log.{f}" for f in LOG_FORMATS} else None
 
 
 def cmd_scenarios(args) -> int:
@@ -413,6 +432,7 @@ def cmd_drive(args) -> int:
     # made by drive.run once the device is open and the servo about to start: a run refused
     # before (an option, the library, another device) leaves no folder
     out = Path(args.out or Path("out") / f"{scenario.name}-drive")
+    _can_make(out)
     if note and not args.quiet:
         print(f"virtmech drive: note: {note}", file=sys.stderr)
     try:

@@ -57,12 +57,14 @@ void require_device_ready(const Controller& c) {
         "watchdog_s: the controller has no watchdog (0); a device needs one: a tick later "
         "than it zeroes the force and ramps it in again (e.g. 3 servo periods)");
   }
-  const double ramp_s = static_cast<double>(c.model().ramp_cycles) * c.model().period_s;
-  if (ramp_s < kMinimumDeviceRampS - 1e-9) {
+  // (ramp_cycles is ramp_time_s / period_s rounded to the nearest: within half a period)
+  const double T = c.model().period_s;
+  const double ramp_s = static_cast<double>(c.model().ramp_cycles) * T;
+  if (ramp_s + 0.5 * T < kMinimumDeviceRampS - 1e-9) {
     std::ostringstream os;
     os << "ramp_time_s: expected at least " << kMinimumDeviceRampS
        << " s on a device (the force ramps in over it; shorter, it steps onto the hand), got "
-       << ramp_s << " s";
+       << "a ramp-in of " << ramp_s << " s";
     throw std::invalid_argument(os.str());
   }
 }

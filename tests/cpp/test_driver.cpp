@@ -107,11 +107,17 @@ TEST(DriverServo, RefusesARampInThatStepsOntoTheHand) {
   } catch (const std::invalid_argument& e) {
     const std::string what = e.what();
     EXPECT_EQ(what.rfind("ramp_time_s: expected at least 0.02 s", 0), 0u) << what;
-    EXPECT_NE(what.find("got 0.001 s"), std::string::npos) << what;
+    EXPECT_NE(what.find("got a ramp-in of 0.001 s"), std::string::npos) << what;
   }
   s.ramp_time_s = kMinimumDeviceRampS;
   Controller ramped(omni, circle(), s);
   EXPECT_NO_THROW(DriverServo{ramped});
+  // 20 ms at 667 Hz: 13 periods (19.5 ms), the nearest whole number: the minimum as written
+  s.period_s = 0.0015;
+  Controller slower(omni, circle(), s);
+  ServoSettings at_667_hz;
+  at_667_hz.period_s = 0.0015;
+  EXPECT_NO_THROW(DriverServo(slower, at_667_hz));
 }
 
 TEST(DriverServo, TorqueIsTheControllersOnTheFilteredVelocity) {

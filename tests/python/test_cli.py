@@ -381,7 +381,8 @@ def test_a_run_into_a_run_s_folder_replaces_it_and_the_replay_reads_the_new_log(
     assert main(["run", "omni-fig11", "--duration", "0.3", "--out", str(out), "--quiet",
                  "--format", "parquet"]) == 0
     err = capsys.readouterr().err
-    assert f"{out}: replacing the run written there before; removed its log.csv" in err
+    assert f"{out}: replacing the run written there before" in err
+    assert f"{out}: removed the earlier run's log.csv" in err
     assert not (out / "log.csv").exists() and (out / "log.parquet").is_file()
     replay = Replay(out)
     assert replay.name == "omni-fig11"
@@ -396,6 +397,18 @@ def test_the_replay_reads_the_log_run_json_names(tmp_path):
                  "--format", "parquet"]) == 0
     (out / "log.csv").write_text("t\n0\n")  # a stray file beside the run's own log
     assert Replay(out).duration == pytest.approx(0.2, abs=2e-3)
+    # a run in parquet again removes no file but the earlier run's own log (replaced)
+    assert main(["run", "omni-fig10", "--duration", "0.2", "--out", str(out), "--quiet",
+                 "--format", "parquet"]) == 0
+    assert (out / "log.csv").read_text() == "t\n0\n" and (out / "log.parquet").is_file()
+
+
+def test_a_run_json_that_is_no_table_is_a_mistake_not_a_traceback(tmp_path, capsys):
+    (tmp_path / "run.json").write_text("[]")
+    (tmp_path / "log.csv").write_text("t\n0\n")
+    assert main(["view", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "run.json cannot be read" in err and "Traceback" not in err
 
 
 FAST_SHORT_PATH = """

@@ -303,10 +303,22 @@ def test_a_ramp_in_that_steps_onto_the_hand_is_refused_before_any_force(
     r = run(library, scenario, tmp_path / "o", cfg, "--duration", "0.5", "--quiet")
     assert r.returncode == 2, r.stdout + r.stderr
     assert "[controller] ramp_time_s: expected at least 0.02 s on a device" in r.stderr
-    assert "got 0.001 s" in r.stderr and "Traceback" not in r.stderr
+    assert "got a ramp-in of 0.001 s" in r.stderr and "Traceback" not in r.stderr
     s = ds.summary(tmp_path)
     assert s["torque_sets"] == "0" and s["scheduler_running"] == "0"
     assert not (tmp_path / "o").exists()
+
+
+def test_an_output_folder_that_cannot_be_made_is_refused_before_the_device_opens(
+    library, scenario, tmp_path
+):
+    (tmp_path / "afile").write_text("")
+    cfg = ds.write_config(tmp_path)
+    r = run(library, scenario, tmp_path / "afile" / "o", cfg, "--duration", "0.5", "--quiet")
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "--out" in r.stderr and "afile is not a folder" in r.stderr
+    s = ds.summary(tmp_path) if (tmp_path / "standin.trace").exists() else {}
+    assert s.get("torque_sets", "0") == "0" and s.get("force_output_enables", "0") == "0"
 
 
 class _ErrorAsTheDurationEnds:

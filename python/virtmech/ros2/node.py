@@ -144,7 +144,8 @@ class RenderNode:
         self.publish(cmd, stamp)
         self.work_ns.append(time.thread_time_ns() - cpu)
         out = cmd.output
-        fault = bool(int(out.status) & 0xFF00) if out is not None else False
+        # (a zero answer to a sample sent again after the watchdog ran no cycle: no change)
+        fault = bool(int(out.status) & 0xFF00) if out is not None else self._faulted
         if fault != self._faulted:
             self._faulted = fault
             if fault:

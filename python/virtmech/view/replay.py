@@ -68,7 +68,7 @@ class Replay:
             S = info["scenario"]
             self.name = str(info.get("name", folder.name))
             rig = build(sc.validate(S, source=str(run_json)), simulated=False)
-        except (OSError, ValueError, KeyError, TypeError) as e:
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
             raise UserError(
                 f"LOG_DIR {folder}: run.json cannot be read as a run of `virtmech run` ({e})"
             ) from None
