@@ -55,8 +55,13 @@ class DeviceFeed(Replay):
             return
         c = self.col
         block = np.asarray(rows[:, [columns.index(n) for n in self.columns]], dtype=float)
-        # no hand: the target on the handle
+        # no hand: the target on the handle, where the readings put it (a tick whose cycle
+        # faulted carries no handle pose of the controller's)
+        q = block[:, c["q0"] : c["q0"] + self.n]
+        read = np.isfinite(q).all(axis=1)
         block[:, c["ax"] : c["ax"] + 3] = block[:, c["px"] : c["px"] + 3]
+        if read.any():
+            block[read, c["ax"] : c["ax"] + 3] = self.device.forward_many(q[read])[:, :3, 3]
         W, tw = block[:, c["fx"] : c["fx"] + 6], block[:, c["vx"] : c["vx"] + 6]
         work = self._work + np.cumsum(np.einsum("ij,ij->i", W, tw)) * self.T
         self._work = float(work[-1])
