@@ -40,6 +40,7 @@ import time
 from pathlib import Path
 
 from .errors import UserError
+from .sim.logio import LOG_FORMATS  # --format: csv, or parquet (needs pyarrow)
 
 SEED_MAX = 2**63 - 1
 
@@ -86,10 +87,6 @@ def _can_make(path: str | Path, flag: str = "--out") -> None:
             f"{flag} {path}: cannot create or write the output folder ({there} is {why}); "
             "expected a folder you can write to"
         )
-
-
-#: the log's file formats (`--format`): csv (default) or parquet (needs pyarrow)
-LOG_FORMATS = ("csv", "parquet")
 
 
 def _require_format(fmt: str) -> None:

@@ -351,3 +351,22 @@ def test_mistakes_are_one_line_and_exit_2(tmp_path, capsys):
     assert main(["view", "omni-fig11", "--host", "8.8.8.8", "--port", "8173"]) == 2
     err = capsys.readouterr().err
     assert "--host 8.8.8.8: cannot listen on it" in err and "--port" not in err
+
+
+def test_a_driven_device_s_target_sits_on_the_handle_its_readings_give():
+    # a tick whose cycle faulted logs no handle pose of the controller's (px zero): the target
+    # still sits where the joint readings put the handle, as the frame's handle does
+    from virtmech.builder import build
+    from virtmech.view.device import DeviceFeed
+
+    rig = build("omni-fig11", simulated=False)
+    feed = DeviceFeed(rig)
+    q = np.array([0.05, 0.45, -0.10, 0.20, 0.60, 0.10])
+    row = np.zeros((1, len(feed.columns)))
+    row[0, feed.col["t"]] = 0.001
+    row[0, feed.col["q0"] : feed.col["q0"] + 6] = q
+    feed.append(row, list(feed.columns))
+    f = feed.frame(0.001)
+    handle = rig.device.forward(q)[:3, 3]
+    np.testing.assert_array_equal(f["handle"][:3, 3], handle)
+    np.testing.assert_array_equal(f["target_p"], handle)

@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 
 #: rows per block when a log in memory is read block by block (10 s at 1 kHz)
+#: the log's file formats (a run's --format): log.csv (the default) or log.parquet
+LOG_FORMATS = ("csv", "parquet")
 READ_BLOCK_ROWS = 10000
 
 

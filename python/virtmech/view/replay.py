@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from ..sim.logio import LOG_FORMATS
 
 
 def is_log_dir(path: str | Path) -> bool:
@@ -26,8 +27,8 @@ def is_log_dir(path: str | Path) -> bool:
     return p.is_dir()
 
 
-#: the log files a run writes (--format csv or parquet)
-LOG_NAMES = ("log.csv", "log.parquet")
+#: the log files a run writes (its --format)
+LOG_NAMES = tuple(f"log.{f}" for f in LOG_FORMATS)
 
 
 def _log_file(folder: Path, named: object = None) -> Path:
